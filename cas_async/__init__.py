@@ -1,0 +1,80 @@
+"""cas_async: an asyncio runtime for collaborative autonomous systems.
+
+Robots are stacks of layers that run concurrently, talk to their neighbouring
+layers inside the robot, and to the same-level layer of other robots. See the
+README for the thesis-to-API map.
+"""
+
+from ._types import Address, Level, RobotId
+from .clock import Clock, ScaledClock, VirtualClock
+from .codec import DEFAULT_MAX_DATAGRAM, Codec, describe_fingerprint, stack_fingerprint
+from .counters import LayerCounters
+from .errors import (
+    CasError,
+    ConfigurationError,
+    DecodeError,
+    EncodeError,
+    LayerError,
+    MessageDefinitionError,
+    RequestTimeout,
+    RobotStateError,
+    StackMismatchError,
+    UnknownRobotError,
+)
+from .layer import Layer
+from .message import Message, MessageSpec, MsgType, message, spec_of
+from .robot import Robot, RobotState
+from .runner import loop_factory, run, uvloop_available
+from .transport import (
+    DatagramSink,
+    Endpoint,
+    MemoryTransport,
+    Transport,
+    UdpDirectory,
+    UdpTransport,
+)
+from .virtual_loop import VirtualTimeLoop
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Address",
+    "CasError",
+    "Clock",
+    "Codec",
+    "ConfigurationError",
+    "DEFAULT_MAX_DATAGRAM",
+    "DatagramSink",
+    "DecodeError",
+    "EncodeError",
+    "Endpoint",
+    "Layer",
+    "LayerCounters",
+    "LayerError",
+    "Level",
+    "MemoryTransport",
+    "Message",
+    "MessageDefinitionError",
+    "MessageSpec",
+    "MsgType",
+    "RequestTimeout",
+    "Robot",
+    "RobotId",
+    "RobotState",
+    "RobotStateError",
+    "ScaledClock",
+    "StackMismatchError",
+    "Transport",
+    "UdpDirectory",
+    "UdpTransport",
+    "UnknownRobotError",
+    "VirtualClock",
+    "VirtualTimeLoop",
+    "describe_fingerprint",
+    "loop_factory",
+    "message",
+    "run",
+    "spec_of",
+    "stack_fingerprint",
+    "uvloop_available",
+]

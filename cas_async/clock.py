@@ -1,0 +1,144 @@
+"""Simulated time: a scaled real-time clock and a virtual-time clock.
+
+Robotic layers express durations in *simulated seconds* and sleep them on the
+robot's clock; application layers read ``clock.now()``. Two implementations:
+
+* :class:`ScaledClock`: real time sped up by ``time_factor``; ``sleep(d)`` waits
+  ``d / time_factor`` real seconds. Runs on any event loop, with real sockets.
+* :class:`VirtualClock`: the event loop's own clock is virtual and jumps to the next
+  timer whenever every task is idle (see :mod:`cas_async.virtual_loop`), so a
+  simulation runs as fast as the CPU allows and a seeded run is reproducible.
+
+This is the only module that reads time: the rest of the package asks a clock.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from abc import ABC, abstractmethod
+from typing import final
+
+from .errors import ConfigurationError
+from .virtual_loop import VirtualTimeLoop
+
+__all__ = ["Clock", "ScaledClock", "VirtualClock"]
+
+
+class Clock(ABC):
+    """Simulated time for a swarm: robots of one simulation share one clock.
+
+    The clock's origin (simulated time 0) is fixed the first time it is started or
+    read, normally when the first robot starts.
+    """
+
+    is_virtual: bool = False
+    """True when time is virtual (only in-process transports can be used)."""
+
+    def __init__(self) -> None:
+        self._origin: float | None = None
+
+    @property
+    @abstractmethod
+    def time_factor(self) -> float:
+        """Simulated seconds per real second (``inf`` for virtual time)."""
+
+    @abstractmethod
+    def _loop_time_per_sim_second(self) -> float:
+        """How many loop-clock seconds one simulated second lasts."""
+
+    def check_loop(self, loop: asyncio.AbstractEventLoop) -> None:  # noqa: B027 - optional hook
+        """Raises ``ConfigurationError`` when this clock cannot run on ``loop``."""
+
+    def start(self) -> None:
+        """Fixes simulated time 0 at the current instant, if not fixed already."""
+        if self._origin is None:
+            loop = asyncio.get_running_loop()
+            self.check_loop(loop)
+            self._origin = loop.time()
+
+    def now(self) -> float:
+        """Simulated seconds since the clock started."""
+        loop = asyncio.get_running_loop()
+        if self._origin is None:
+            self.start()
+        assert self._origin is not None
+        return (loop.time() - self._origin) / self._loop_time_per_sim_second()
+
+    async def sleep(self, seconds: float) -> None:
+        """Waits ``seconds`` of simulated time (a non-positive value just yields)."""
+        await asyncio.sleep(max(0.0, seconds) * self._loop_time_per_sim_second())
+
+    async def sleep_until(self, deadline: float) -> None:
+        """Waits until simulated time ``deadline``.
+
+        Sleeping to absolute deadlines keeps timer rounding from accumulating over
+        a sequence of actions, unlike a chain of relative sleeps.
+        """
+        await self.sleep(deadline - self.now())
+
+    def timeout(self, seconds: float | None) -> asyncio.Timeout:
+        """An ``async with`` block that raises ``TimeoutError`` after ``seconds`` simulated."""
+        if seconds is None:
+            return asyncio.timeout(None)
+        return asyncio.timeout(max(0.0, seconds) * self._loop_time_per_sim_second())
+
+
+@final
+class ScaledClock(Clock):
+    """Real time sped up: ``sleep(d)`` lasts ``d / time_factor`` real seconds.
+
+    Args:
+        time_factor: simulated seconds per real second; 1.0 is real time.
+    """
+
+    def __init__(self, time_factor: float = 1.0) -> None:
+        super().__init__()
+        if not time_factor > 0 or time_factor == float("inf"):
+            raise ConfigurationError(
+                f"time_factor must be a positive finite number, got {time_factor!r}"
+                " (use VirtualClock for as-fast-as-possible runs)"
+            )
+        self._factor = float(time_factor)
+        self._scale = 1.0 / self._factor
+
+    @property
+    def time_factor(self) -> float:
+        """Simulated seconds per real second."""
+        return self._factor
+
+    def _loop_time_per_sim_second(self) -> float:
+        return self._scale
+
+    def __repr__(self) -> str:
+        return f"ScaledClock(time_factor={self._factor:g})"
+
+
+@final
+class VirtualClock(Clock):
+    """Virtual time: needs the loop of :class:`~cas_async.virtual_loop.VirtualTimeLoop`.
+
+    Start one with ``cas_async.run(main(), virtual=True)``. Simulated seconds are
+    the loop's seconds, so ``asyncio.sleep`` and timeouts follow virtual time too.
+    """
+
+    is_virtual = True
+
+    @property
+    def time_factor(self) -> float:
+        """Always ``inf``: the loop jumps over idle time."""
+        return float("inf")
+
+    def _loop_time_per_sim_second(self) -> float:
+        return 1.0
+
+    def check_loop(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Refuses loops whose clock is real."""
+        if not isinstance(loop, VirtualTimeLoop):
+            raise ConfigurationError(
+                f"VirtualClock needs the virtual-time event loop, but this loop is "
+                f"{type(loop).__name__}: run with cas_async.run(main(), virtual=True) "
+                "or use ScaledClock"
+            )
+
+    def __repr__(self) -> str:
+        return "VirtualClock()"

@@ -1,0 +1,420 @@
+"""``Robot``: an ordered stack of layers, its transport endpoint, and their lifecycle.
+
+The thesis's RobotArchitecture/RobotImplementation with ConnectLayers, StartProcess
+and EndProcess::
+
+    robot = Robot(robot_id=3, layers=[Top(), Middle(), Bottom()], transport=..., clock=...)
+    async with robot:          # opens the endpoint, starts one task per layer
+        await robot.run()      # until every termination_condition() holds
+    # leaving the block cancels the layer tasks and closes the endpoint
+
+The layer tasks live in an ``asyncio.TaskGroup`` owned by a supervisor task, so the
+code that embeds a robot is never cancelled by it: when a layer raises, its siblings
+are cancelled and ``run()`` (or leaving the ``async with``) raises
+:class:`~cas_async.errors.LayerError` naming the robot and layer, with the original
+exception as ``__cause__``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import enum
+import itertools
+from collections.abc import Iterable, Sequence
+from types import TracebackType
+from typing import final
+
+from ._types import Address, RobotId
+from .channel import DEFAULT_EXTERNAL_LIMIT
+from .clock import Clock, ScaledClock
+from .codec import DEFAULT_MAX_DATAGRAM, Codec, describe_fingerprint, stack_fingerprint
+from .counters import LayerCounters
+from .errors import (
+    ConfigurationError,
+    DecodeError,
+    LayerError,
+    RobotStateError,
+    StackMismatchError,
+    UnknownRobotError,
+)
+from .layer import Layer
+from .logs import DropLog, logger_for
+from .message import Message, specs_for
+from .transport.base import Endpoint, Transport
+
+__all__ = ["Robot", "RobotState"]
+
+
+class RobotState(enum.Enum):
+    """Where a robot is in its (one-way) lifecycle."""
+
+    CREATED = "created"
+    RUNNING = "running"
+    STOPPED = "stopped"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@final
+class Robot:
+    """A robot: layers (index 0 = top), an optional transport, and a clock.
+
+    Args:
+        robot_id: unique in the swarm.
+        layers: the stack, top first; each layer instance belongs to one robot.
+        transport: how external messages travel; without one, ``send`` raises.
+        clock: simulated time; real time (``ScaledClock(1.0)``) by default.
+        messages: the message classes this robot's stack uses; they define the
+            stack fingerprint. Default: every registered message. Pass it when one
+            process holds messages of several applications (e.g. a test session).
+        max_datagram_size: largest datagram encoded or accepted (also capped by the
+            transport's own limit).
+        queue_limit: pending external messages per layer above which new ones are
+            dropped and counted (internal messages are never dropped).
+    """
+
+    def __init__(
+        self,
+        robot_id: RobotId,
+        layers: Sequence[Layer],
+        *,
+        transport: Transport | None = None,
+        clock: Clock | None = None,
+        messages: Iterable[type[Message]] | None = None,
+        max_datagram_size: int = DEFAULT_MAX_DATAGRAM,
+        queue_limit: int = DEFAULT_EXTERNAL_LIMIT,
+    ) -> None:
+        if type(robot_id) is not int:
+            raise ConfigurationError(f"robot_id must be an int, got {robot_id!r}")
+        self.robot_id = robot_id
+        self.layers: tuple[Layer, ...] = tuple(layers)
+        if not self.layers:
+            raise ConfigurationError(f"robot {robot_id}: a robot needs at least one layer")
+        self.transport = transport
+        self.clock: Clock = clock if clock is not None else ScaledClock(1.0)
+        self.queue_limit = queue_limit
+        self._messages = None if messages is None else tuple(messages)
+        self._max_datagram_size = max_datagram_size
+        self._ids = itertools.count(1)
+        self._log = logger_for(robot_id)
+        self._drops = DropLog(self._log)
+        self._mismatches_seen: set[int] = set()
+        self._state = RobotState.CREATED
+        self._endpoint: Endpoint | None = None
+        self._codec: Codec | None = None
+        self._supervisor: asyncio.Task[None] | None = None
+        self._finished: asyncio.Future[None] | None = None
+        self._stop_requested: asyncio.Event | None = None
+        self._error_reported = False
+        self._connect_layers()
+        self._judges = [layer for layer in self.layers if layer._has_termination_condition()]
+
+    def _connect_layers(self) -> None:
+        """Thesis ConnectLayers: levels by list order, each layer knows its neighbours."""
+        for level, layer in enumerate(self.layers):
+            if not isinstance(layer, Layer):
+                raise ConfigurationError(
+                    f"robot {self.robot_id}: layer {level} is {layer!r}, not a Layer instance"
+                )
+            if layer._robot is not None:
+                raise ConfigurationError(
+                    f"robot {self.robot_id}: {type(layer).__name__} at level {level} already "
+                    f"belongs to robot {layer._robot.robot_id}; create one layer instance per robot"
+                )
+            name = type(layer).__name__
+            layer._attach(self, level, logger_for(self.robot_id, name, level))
+        for upper, lower in itertools.pairwise(self.layers):
+            upper._below = lower
+            lower._above = upper
+
+    # -- introspection -----------------------------------------------------------------
+
+    @property
+    def state(self) -> RobotState:
+        """CREATED, RUNNING or STOPPED."""
+        return self._state
+
+    @property
+    def fingerprint(self) -> int:
+        """This robot's stack fingerprint (known once started)."""
+        if self._codec is None:
+            raise RobotStateError(f"robot {self.robot_id} has no fingerprint until it starts")
+        return self._codec.fingerprint
+
+    @property
+    def address(self) -> Address | None:
+        """Where other robots reach this one, once started with a transport."""
+        return None if self._endpoint is None else self._endpoint.address
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Messages dropped so far, by reason."""
+        return dict(self._drops.counts)
+
+    def counters(self) -> dict[str, int]:
+        """Message counters summed over the layers, plus ``dropped.<reason>``."""
+        total = LayerCounters()
+        for layer in self.layers:
+            for name, value in layer.counters.as_dict().items():
+                setattr(total, name, getattr(total, name) + value)
+        counts = total.as_dict()
+        counts.update({f"dropped.{reason}": n for reason, n in sorted(self._drops.counts.items())})
+        return counts
+
+    def __repr__(self) -> str:
+        names = ", ".join(type(layer).__name__ for layer in self.layers)
+        return f"Robot({self.robot_id}, [{names}], {self._state})"
+
+    # -- lifecycle ---------------------------------------------------------------------
+
+    async def __aenter__(self) -> Robot:
+        """StartProcess: opens the endpoint and starts one task per layer."""
+        if self._state is not RobotState.CREATED:
+            raise RobotStateError(
+                f"robot {self.robot_id} is {self._state}; a Robot runs once, create a new one"
+            )
+        loop = asyncio.get_running_loop()
+        self.clock.check_loop(loop)
+        if (
+            self.clock.is_virtual
+            and self.transport is not None
+            and not self.transport.supports_virtual_time
+        ):
+            raise ConfigurationError(
+                f"robot {self.robot_id}: {type(self.transport).__name__} uses real sockets, which "
+                "do not run on virtual time; use MemoryTransport with VirtualClock, "
+                "or ScaledClock with this transport"
+            )
+        specs = specs_for(self._messages)
+        fingerprint = stack_fingerprint(len(self.layers), specs)
+        limit = self._max_datagram_size
+        if self.transport is not None:
+            self._endpoint = await self.transport.open(self.robot_id, self)
+            limit = min(limit, self._endpoint.max_datagram_size)
+        self._codec = Codec(specs, fingerprint, limit)
+        self.clock.start()
+        self._finished = loop.create_future()
+        self._stop_requested = asyncio.Event()
+        self._state = RobotState.RUNNING
+        for layer in self.layers:
+            layer._live = True
+        self._supervisor = loop.create_task(
+            self._supervise(), name=f"cas_async robot {self.robot_id}"
+        )
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        """EndProcess: cancels the layer tasks, waits for them, closes the endpoint.
+
+        Raises:
+            LayerError: a layer failed and ``run()`` did not already raise it.
+        """
+        if self._state is not RobotState.RUNNING:
+            return
+        self.stop()
+        supervisor = self._supervisor
+        assert supervisor is not None
+        try:
+            await asyncio.shield(supervisor)
+        except asyncio.CancelledError:
+            # Our caller is being cancelled: still finish the shutdown, then go on cancelling.
+            supervisor.cancel()
+            await asyncio.wait([supervisor])
+            raise
+        finally:
+            self._close()
+        error = self._error()
+        if error is not None and not self._error_reported and exc is None:
+            self._error_reported = True
+            raise error
+
+    def _close(self) -> None:
+        for layer in self.layers:
+            layer._live = False
+        if self._endpoint is not None:
+            self._endpoint.close()
+        self._state = RobotState.STOPPED
+
+    async def _supervise(self) -> None:
+        try:
+            async with asyncio.TaskGroup() as group:
+                tasks = [
+                    group.create_task(
+                        self._run_layer(layer),
+                        name=f"cas_async {layer.log.prefix.rstrip(': ')}",
+                    )
+                    for layer in self.layers
+                ]
+                assert self._stop_requested is not None
+                await self._stop_requested.wait()
+                for task in tasks:
+                    task.cancel()
+        except BaseExceptionGroup as group:
+            first, *others = group.exceptions
+            for other in others:
+                first.add_note(f"at the same time: {other}")
+            self._finish(first)
+
+    async def _run_layer(self, layer: Layer) -> None:
+        try:
+            await layer._run()
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:
+            layer.log.error("failed: %s: %s", type(exc).__name__, exc)
+            raise LayerError(self.robot_id, layer._level, type(layer).__name__, exc) from exc
+
+    def _finish(self, error: BaseException | None) -> None:
+        finished = self._finished
+        if finished is not None and not finished.done():
+            if error is None:
+                finished.set_result(None)
+            else:
+                finished.set_exception(error)
+                self._stop_requested.set()  # type: ignore[union-attr]
+
+    def _error(self) -> BaseException | None:
+        finished = self._finished
+        if finished is None or not finished.done() or finished.cancelled():
+            return None
+        return finished.exception()
+
+    async def run(self) -> None:
+        """Runs until every layer's ``termination_condition()`` holds, or ``stop()``.
+
+        Starts (and afterwards stops) the robot when called outside ``async with``.
+
+        Raises:
+            LayerError: a layer raised; the other layers were stopped.
+            RobotStateError: the robot was already stopped.
+        """
+        if self._state is RobotState.CREATED:
+            async with self:
+                await self.run()
+            return
+        if self._state is RobotState.STOPPED:
+            raise RobotStateError(f"robot {self.robot_id} is stopped; a Robot runs once")
+        assert self._finished is not None
+        try:
+            await asyncio.shield(self._finished)
+        except LayerError:
+            self._error_reported = True
+            raise
+
+    def stop(self) -> None:
+        """Asks the robot to stop: ``run()`` returns and the layer tasks are cancelled.
+
+        Safe to call from a layer and more than once.
+
+        Raises:
+            RobotStateError: the robot was never started.
+        """
+        if self._state is RobotState.CREATED:
+            raise RobotStateError(f"robot {self.robot_id} was never started")
+        self._finish(None)
+        if self._stop_requested is not None:
+            self._stop_requested.set()
+
+    # -- termination -------------------------------------------------------------------
+
+    def _layer_may_be_done(self, layer: Layer) -> None:
+        """Called after a layer's batch: finishes ``run()`` when every layer is done.
+
+        Only layers that override ``termination_condition`` have a say: a layer
+        that merely forwards should not keep a robot running forever.
+        """
+        if layer.termination_condition() and all(
+            other.termination_condition() for other in self._judges
+        ):
+            self._finish(None)
+
+    # -- external messages (called by layers) --------------------------------------------
+
+    def _send_external(self, robot_id: RobotId, msg: Message) -> None:
+        endpoint = self._endpoint
+        if endpoint is None:
+            raise ConfigurationError(
+                f"robot {self.robot_id} has no transport: pass transport=... to Robot to "
+                "send to other robots"
+            )
+        endpoint.send(robot_id, self._codec.encode(msg))  # type: ignore[union-attr]
+
+    def _broadcast(
+        self, msg: Message, robots: Iterable[RobotId] | None
+    ) -> tuple[int, list[RobotId]]:
+        endpoint = self._endpoint
+        if endpoint is None:
+            raise ConfigurationError(f"robot {self.robot_id} has no transport to broadcast on")
+        data = self._codec.encode(msg)  # type: ignore[union-attr]
+        sent, unknown = 0, []
+        for robot_id in endpoint.peers() if robots is None else robots:
+            if robot_id == self.robot_id:
+                continue
+            try:
+                endpoint.send(robot_id, data)
+            except UnknownRobotError:
+                unknown.append(robot_id)
+            else:
+                sent += 1
+        return sent, unknown
+
+    # -- DatagramSink: what the endpoint calls ------------------------------------------
+
+    def datagram_received(self, data: bytes) -> None:
+        """Decodes, checks and routes one datagram; anything wrong is dropped and counted."""
+        if self._state is not RobotState.RUNNING:
+            self._drops.drop("not_running", f"datagram of {len(data)} bytes after stop")
+            return
+        try:
+            msg = self._codec.decode(data)  # type: ignore[union-attr]
+        except StackMismatchError as exc:
+            self._refuse_stack(exc)
+            return
+        except DecodeError as exc:
+            self._drops.drop(f"decode.{exc.reason}", str(exc))
+            return
+        level = msg.dst_layer
+        if msg.src_layer != level:
+            self._drop(
+                "cross_level", f"external {msg!r}: external messages connect same levels only"
+            )
+        elif not 0 <= level < len(self.layers):
+            self._drop(
+                "no_such_layer", f"external {msg!r}: this robot has {len(self.layers)} layers"
+            )
+        elif msg.robot_id == self.robot_id:
+            self._drop("from_own_id", f"external {msg!r} claims to come from this robot")
+        else:
+            self.layers[level]._accept_external(msg)
+
+    def transport_dropped(self, reason: str, detail: str) -> None:
+        """Counts what the transport lost or refused."""
+        self._drops.drop(f"transport.{reason}", detail)
+
+    def _refuse_stack(self, exc: StackMismatchError) -> None:
+        first = exc.theirs not in self._mismatches_seen
+        self._drops.drop("stack_mismatch", str(exc), log=False)
+        if first:
+            self._mismatches_seen.add(exc.theirs)
+            self._log.error(
+                "refusing datagrams from robot %s: its stack (%s) differs from ours (%s). "
+                "Robots that exchange messages must run identical stacks: the same number of "
+                "layers and the same registered messages (import the same message modules, or "
+                "pass the same messages=[...] to every Robot). "
+                "Further mismatches are only counted.",
+                exc.sender,
+                describe_fingerprint(exc.theirs),
+                describe_fingerprint(exc.ours),
+            )
+
+    def _drop(self, reason: str, detail: str) -> None:
+        self._drops.drop(reason, detail)
+
+    def _violation(self, reason: str, layer: Layer, msg: Message) -> None:
+        self._drops.drop(reason, f"{type(layer).__name__}(L{layer._level}) sent {msg!r}")

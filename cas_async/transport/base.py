@@ -1,0 +1,75 @@
+"""The transport interface: how a robot's external messages move as bytes.
+
+This is the thesis's Communication/CommInterface pair. A :class:`Transport` is
+shared by the robots that can reach each other through it; each robot opens one
+:class:`Endpoint` on it. Layers never see either: they send to a robot id, the
+robot encodes the message and hands the bytes to its endpoint, and incoming bytes
+come back through a :class:`DatagramSink` (the robot). Addresses are opaque, and
+nothing assumes that all robots share a process, so a brokered or multi-host
+backend fits behind the same interface.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Iterable
+from typing import Protocol
+
+from .._types import Address, RobotId
+
+__all__ = ["DatagramSink", "Endpoint", "Transport"]
+
+
+class DatagramSink(Protocol):
+    """What an endpoint delivers to: implemented by :class:`~cas_async.robot.Robot`."""
+
+    def datagram_received(self, data: bytes) -> None:
+        """Called with each datagram for this robot, in arrival order."""
+
+    def transport_dropped(self, reason: str, detail: str) -> None:
+        """Called when the transport lost or refused something (counted by reason)."""
+
+
+class Endpoint(ABC):
+    """One robot's attachment to a transport."""
+
+    robot_id: RobotId
+    max_datagram_size: int
+    """Largest datagram this endpoint can carry, in bytes."""
+
+    @property
+    @abstractmethod
+    def address(self) -> Address:
+        """Where other robots reach this one (opaque)."""
+
+    @abstractmethod
+    def send(self, robot_id: RobotId, data: bytes) -> None:
+        """Sends one datagram, without waiting. Delivery is not guaranteed.
+
+        Raises:
+            UnknownRobotError: no address is known for ``robot_id``.
+            RobotStateError: the endpoint is closed.
+        """
+
+    @abstractmethod
+    def peers(self) -> Iterable[RobotId]:
+        """The other robots this endpoint knows an address for (broadcast targets)."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stops sending and receiving; idempotent."""
+
+
+class Transport(ABC):
+    """Creates endpoints; one instance is shared by the robots it connects."""
+
+    supports_virtual_time: bool = False
+    """Whether robots on this transport can run on a virtual clock."""
+
+    @abstractmethod
+    async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
+        """Attaches a robot; its incoming datagrams go to ``sink``.
+
+        Raises:
+            ConfigurationError: the robot id is already attached, or cannot be bound.
+        """

@@ -1,0 +1,87 @@
+"""An in-process transport that still moves bytes.
+
+Every message is encoded by the sender and decoded by the receiver exactly as over
+UDP, so behaviour, limits and errors are the same; only the socket is missing.
+Delivery is scheduled with ``loop.call_soon`` (never a re-entrant call into the
+receiver), in send order, which keeps virtual-time runs deterministic.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterable
+from typing import final
+
+from .._types import Address, RobotId
+from ..codec import DEFAULT_MAX_DATAGRAM
+from ..errors import ConfigurationError, RobotStateError, UnknownRobotError
+from .base import DatagramSink, Endpoint, Transport
+
+__all__ = ["MemoryTransport"]
+
+
+@final
+class MemoryEndpoint(Endpoint):
+    """A robot's attachment to a :class:`MemoryTransport`."""
+
+    __slots__ = ("_closed", "_loop", "_network", "_sink", "max_datagram_size", "robot_id")
+
+    def __init__(self, network: MemoryTransport, robot_id: RobotId, sink: DatagramSink) -> None:
+        self._network = network
+        self._sink = sink
+        self._loop = asyncio.get_running_loop()
+        self._closed = False
+        self.robot_id = robot_id
+        self.max_datagram_size = network.max_datagram_size
+
+    @property
+    def address(self) -> Address:
+        return ("memory", self.robot_id)
+
+    def send(self, robot_id: RobotId, data: bytes) -> None:
+        if self._closed:
+            raise RobotStateError(f"robot {self.robot_id}: endpoint is closed")
+        target = self._network._endpoints.get(robot_id)
+        if target is None:
+            raise UnknownRobotError(f"no robot {robot_id} on this MemoryTransport")
+        self._loop.call_soon(target._deliver, data)
+
+    def _deliver(self, data: bytes) -> None:
+        if not self._closed:
+            self._sink.datagram_received(data)
+
+    def peers(self) -> Iterable[RobotId]:
+        return [rid for rid in self._network._endpoints if rid != self.robot_id]
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            if self._network._endpoints.get(self.robot_id) is self:
+                del self._network._endpoints[self.robot_id]
+
+
+@final
+class MemoryTransport(Transport):
+    """Connects robots of one process through memory (usable with virtual time).
+
+    Args:
+        max_datagram_size: largest datagram, as for a real network.
+    """
+
+    supports_virtual_time = True
+
+    def __init__(self, max_datagram_size: int = DEFAULT_MAX_DATAGRAM) -> None:
+        self.max_datagram_size = max_datagram_size
+        self._endpoints: dict[RobotId, MemoryEndpoint] = {}
+
+    async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
+        """Attaches a robot; raises ``ConfigurationError`` when its id is taken."""
+        if robot_id in self._endpoints:
+            raise ConfigurationError(
+                f"robot {robot_id} is already attached to this MemoryTransport"
+            )
+        endpoint = self._endpoints[robot_id] = MemoryEndpoint(self, robot_id, sink)
+        return endpoint
+
+    def __repr__(self) -> str:
+        return f"MemoryTransport({len(self._endpoints)} robots)"
