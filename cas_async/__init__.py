@@ -25,6 +25,7 @@ from .layer import Layer
 from .message import Message, MessageSpec, MsgType, message, spec_of
 from .robot import Robot, RobotState
 from .runner import loop_factory, run, uvloop_available
+from .swarm import Swarm
 from .transport import (
     DatagramSink,
     Endpoint,
@@ -64,6 +65,7 @@ __all__ = [
     "RobotStateError",
     "ScaledClock",
     "StackMismatchError",
+    "Swarm",
     "Transport",
     "UdpDirectory",
     "UdpTransport",

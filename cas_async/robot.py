@@ -106,6 +106,7 @@ class Robot:
         self._supervisor: asyncio.Task[None] | None = None
         self._finished: asyncio.Future[None] | None = None
         self._stop_requested: asyncio.Event | None = None
+        self._failure: BaseException | None = None
         self._error_reported = False
         self._connect_layers()
         self._judges = [layer for layer in self.layers if layer._has_termination_condition()]
@@ -170,7 +171,17 @@ class Robot:
 
     async def __aenter__(self) -> Robot:
         """StartProcess: opens the endpoint and starts one task per layer."""
-        if self._state is not RobotState.CREATED:
+        await self._open()
+        self._start()
+        return self
+
+    async def _open(self) -> None:
+        """First half of starting: checks the set-up and opens the endpoint.
+
+        A :class:`~cas_async.swarm.Swarm` opens every robot before starting any, so
+        no layer sends to a robot whose endpoint does not exist yet.
+        """
+        if self._state is not RobotState.CREATED or self._codec is not None:
             raise RobotStateError(
                 f"robot {self.robot_id} is {self._state}; a Robot runs once, create a new one"
             )
@@ -193,6 +204,10 @@ class Robot:
             self._endpoint = await self.transport.open(self.robot_id, self)
             limit = min(limit, self._endpoint.max_datagram_size)
         self._codec = Codec(specs, fingerprint, limit)
+
+    def _start(self) -> None:
+        """Second half of starting: starts the clock and one task per layer."""
+        loop = asyncio.get_running_loop()
         self.clock.start()
         self._finished = loop.create_future()
         self._stop_requested = asyncio.Event()
@@ -202,7 +217,6 @@ class Robot:
         self._supervisor = loop.create_task(
             self._supervise(), name=f"cas_async robot {self.robot_id}"
         )
-        return self
 
     async def __aexit__(
         self,
@@ -259,6 +273,9 @@ class Robot:
             first, *others = group.exceptions
             for other in others:
                 first.add_note(f"at the same time: {other}")
+            # Kept apart from run()'s result: a failure after run() returned (or during
+            # shutdown) must still surface when the robot's block is left.
+            self._failure = first
             self._finish(first)
 
     async def _run_layer(self, layer: Layer) -> None:
@@ -281,9 +298,9 @@ class Robot:
 
     def _error(self) -> BaseException | None:
         finished = self._finished
-        if finished is None or not finished.done() or finished.cancelled():
-            return None
-        return finished.exception()
+        if finished is not None and finished.done() and not finished.cancelled():
+            finished.exception()  # marks it retrieved: no "never retrieved" warning
+        return self._failure
 
     async def run(self) -> None:
         """Runs until every layer's ``termination_condition()`` holds, or ``stop()``.

@@ -1,0 +1,44 @@
+"""Shared fixtures: robots that start and stop themselves."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator, Callable, Sequence
+from contextlib import AsyncExitStack
+
+import pytest
+
+from cas_async import Layer, MemoryTransport, Robot, Transport
+from tests.stacks import STACK_MESSAGES
+
+StartRobot = Callable[..., "asyncio.Future[Robot]"]
+
+
+@pytest.fixture
+async def start_robot() -> AsyncIterator[Callable[..., object]]:
+    """Factory: ``robot = await start_robot(robot_id, layers, transport=...)``, stopped at teardown."""
+    async with AsyncExitStack() as stack:
+
+        async def start(
+            robot_id: int,
+            layers: Sequence[Layer],
+            *,
+            transport: Transport | None = None,
+            **kwargs: object,
+        ) -> Robot:
+            kwargs.setdefault("messages", STACK_MESSAGES)
+            robot = Robot(robot_id, layers, transport=transport, **kwargs)  # type: ignore[arg-type]
+            return await stack.enter_async_context(robot)
+
+        yield start
+
+
+@pytest.fixture
+def memory() -> MemoryTransport:
+    return MemoryTransport()
+
+
+async def settle(rounds: int = 20) -> None:
+    """Lets queued callbacks and layer tasks run (no real waiting)."""
+    for _ in range(rounds):
+        await asyncio.sleep(0)

@@ -1,0 +1,39 @@
+"""The README's code and the examples run as documented (real subprocesses)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _run(args: list[str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-X", "dev", "-W", "error", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
+def test_readme_example_runs(tmp_path: Path) -> None:
+    readme = (ROOT / "README.md").read_text()
+    match = re.search(r"## Two robots exchanging messages\n\n```python\n(.*?)```", readme, re.S)
+    assert match, "README lost its example"
+    script = tmp_path / "readme_example.py"
+    script.write_text(match.group(1))
+    result = _run([str(script)])
+    assert result.returncode == 0, result.stderr
+    assert "robot 2 got Ping(n=11, note='thanks')" in result.stdout
+
+
+def test_two_robots_example_runs() -> None:
+    result = _run(["examples/two_robots.py", "--throws", "4", "--time-factor", "200"])
+    assert result.returncode == 0, result.stderr
+    assert "robot 1 caught throw 4" in result.stdout
+    assert "4 throws in" in result.stdout

@@ -1,0 +1,271 @@
+"""Between robots: same-level delivery, requests, broadcast, and what is refused."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+
+import msgpack
+import pytest
+
+from cas_async import (
+    ConfigurationError,
+    Layer,
+    MemoryTransport,
+    Message,
+    MsgType,
+    RequestTimeout,
+    Robot,
+    UdpTransport,
+    UnknownRobotError,
+    VirtualClock,
+    message,
+    spec_of,
+)
+from tests.conftest import settle
+from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
+
+
+@pytest.fixture(params=["memory", "udp"])
+def transport(request: pytest.FixtureRequest) -> MemoryTransport | UdpTransport:
+    return MemoryTransport() if request.param == "memory" else UdpTransport()
+
+
+async def wait_for(condition, timeout: float = 5.0) -> None:
+    """Polls a condition while real datagrams travel (bounded)."""
+    async with asyncio.timeout(timeout):
+        while not condition():
+            await asyncio.sleep(0.001)
+
+
+async def test_external_messages_reach_the_same_level(start_robot, transport) -> None:
+    a, b = recorders(3), recorders(3)
+    await start_robot(1, a, transport=transport)
+    await start_robot(2, b, transport=transport)
+    a[1].send(2, Note("to level 1", [1, 2]))
+    a[2].send(2, Note("to level 2", []))
+    await wait_for(lambda: b[1].external and b[2].external)
+    (got,) = b[1].external
+    assert (got.text, got.hops, got.robot_id, got.src_layer, got.dst_layer) == (
+        "to level 1",
+        [1, 2],
+        1,
+        1,
+        1,
+    )
+    assert [m.text for m in b[2].external] == ["to level 2"]
+    assert not b[0].external and not b[1].internal
+
+
+async def test_external_request_and_reply(start_robot, transport) -> None:
+    a, b = recorders(2), recorders(2)
+    await start_robot(1, a, transport=transport)
+    await start_robot(2, b, transport=transport)
+    reply = await a[0].request(2, Query(21), timeout=5)
+    assert isinstance(reply, Answer)
+    assert (reply.value, reply.robot_id, reply.msg_type) == (42, 2, MsgType.ACCEPT)
+    assert b[0].external[0].msg_type == MsgType.NEGOTIATION
+    assert not a[0].external  # the awaited reply is not also handed to handle_msg
+
+
+async def test_request_to_a_silent_robot_times_out_and_the_late_reply_is_dropped(
+    start_robot,
+) -> None:
+    transport = MemoryTransport()
+
+    class Slow(Recorder):
+        async def handle_msg(self, msg: Message) -> None:
+            self.pending = msg
+
+    a, b = recorders(1), [Slow()]
+    robot_a = await start_robot(1, a, transport=transport)
+    await start_robot(2, b, transport=transport)
+    with pytest.raises(RequestTimeout, match=r"no reply from robot 2 to Query #\d+ within 0.01 s"):
+        await a[0].request(2, Query(1), timeout=0.01)
+    b[0].reply(b[0].pending, Answer(2, 0))
+    await settle()
+    assert robot_a.dropped == {"late_reply": 1}
+    assert not a[0].external
+
+
+async def test_reply_from_another_robot_is_refused(start_robot) -> None:
+    transport = MemoryTransport()
+
+    class Mute(Recorder):
+        async def handle_msg(self, msg: Message) -> None:
+            self.external.append(msg)  # records, never answers by itself
+
+    a, b, c = recorders(1), [Mute()], [Mute()]
+    robot_a = await start_robot(1, a, transport=transport)
+    await start_robot(2, b, transport=transport)
+    await start_robot(3, c, transport=transport)
+    asking = asyncio.create_task(a[0].request(2, Query(1), timeout=1))
+    await settle()
+    (question,) = b[0].external
+    c[0].reply(question, Answer(666, 0))  # robot 3 answers a question put to robot 2
+    await settle()
+    assert robot_a.dropped == {"reply_from_wrong_robot": 1}
+    assert not asking.done()
+    b[0].reply(question, Answer(2, 0))
+    assert (await asking).value == 2
+
+
+async def test_broadcast_reaches_every_other_robot_once(start_robot, transport) -> None:
+    stacks = {rid: recorders(2) for rid in (1, 2, 3, 4)}
+    for rid, stack in stacks.items():
+        await start_robot(rid, stack, transport=transport)
+    stacks[1][1].broadcast(Note("all", []))
+    stacks[2][0].broadcast(Note("some", []), robots=[3])
+    await wait_for(lambda: all(stacks[r][1].external for r in (2, 3, 4)) and stacks[3][0].external)
+    assert not stacks[1][1].external
+    assert [len(stacks[r][1].external) for r in (2, 3, 4)] == [1, 1, 1]
+    assert stacks[1][1].counters.sent_external == 3
+    with pytest.raises(UnknownRobotError, match=r"no address for robots \[9\]"):
+        stacks[1][0].broadcast(Note("x", []), robots=[2, 9])
+
+
+async def test_sending_to_an_unknown_robot_raises(start_robot, transport) -> None:
+    stack = recorders(1)
+    await start_robot(1, stack, transport=transport)
+    with pytest.raises(UnknownRobotError, match="robot 99"):
+        stack[0].send(99, Note("?", []))
+
+
+@message
+class OnlyInOtherStack(Message):
+    flag: bool
+
+
+@pytest.mark.parametrize(
+    ("their_layers", "their_messages", "what"),
+    [
+        pytest.param(3, (*STACK_MESSAGES, OnlyInOtherStack), "message set", id="other-messages"),
+        pytest.param(2, STACK_MESSAGES, "2 layers", id="other-layer-count"),
+    ],
+)
+async def test_stack_mismatch_is_refused_counted_and_logged_once(
+    start_robot, caplog, their_layers, their_messages, what
+) -> None:
+    transport = MemoryTransport()
+    ours = recorders(3)
+    theirs = recorders(their_layers)
+    robot = await start_robot(1, ours, transport=transport)
+    await start_robot(2, theirs, transport=transport, messages=their_messages)
+    for _ in range(3):
+        theirs[0].send(1, Note("hi", []))
+    await settle()
+    assert not ours[0].external
+    assert robot.dropped == {"stack_mismatch": 3}
+    refusals = [r for r in caplog.records if "refusing datagrams from robot 2" in r.getMessage()]
+    assert len(refusals) == 1
+    text = refusals[0].getMessage()
+    assert what in text and "3 layers" in text and "identical stacks" in text
+
+
+def _raw_datagram(robot: Robot, *fields: object) -> bytes:
+    return msgpack.packb([robot.fingerprint, *fields])
+
+
+async def test_hostile_datagrams_over_real_udp_are_dropped_and_counted(start_robot) -> None:
+    transport = UdpTransport()
+    stack = recorders(2)
+    robot = await start_robot(1, stack, transport=transport)
+    note_id = spec_of(Note).type_id
+    header = lambda src, dst, sender=2: [note_id, 1, 1, sender, src, dst, 0]  # noqa: E731
+    hostile = {
+        "decode.malformed": b"\xc1\xff garbage",
+        "decode.bad_header": msgpack.packb({"not": "a datagram"}),
+        "decode.unknown_type": _raw_datagram(robot, 12345, 1, 1, 2, 0, 0, 0),
+        "decode.wrong_arity": _raw_datagram(robot, *header(0, 0), "text"),
+        "decode.wrong_type": _raw_datagram(robot, *header(0, 0), 5, []),
+        "decode.oversize": b"\x00" * 70_000,
+        "cross_level": _raw_datagram(robot, *header(0, 1), "up", []),
+        "no_such_layer": _raw_datagram(robot, *header(5, 5), "deep", []),
+        "from_own_id": _raw_datagram(robot, *header(0, 0, sender=1), "me", []),
+        "stack_mismatch": msgpack.packb([robot.fingerprint ^ 1, *header(0, 0), "x", []]),
+    }
+    host, port = robot.address
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
+        for data in hostile.values():
+            if len(data) <= 65_507:
+                sock.sendto(data, (host, port))
+        sock.sendto(_raw_datagram(robot, *header(0, 0), "valid", [7]), (host, port))
+    await wait_for(lambda: stack[0].external)
+    expected = {reason: 1 for reason, data in hostile.items() if len(data) <= 65_507}
+    assert robot.dropped == expected
+    assert [m.text for m in stack[0].external] == ["valid"]
+
+
+async def test_oversize_datagrams_are_refused_by_the_memory_transport_too(start_robot) -> None:
+    transport = MemoryTransport()
+    stack = recorders(1)
+    robot = await start_robot(1, stack, transport=transport)
+    await start_robot(2, recorders(1), transport=transport)
+    robot.datagram_received(b"\x00" * 70_000)
+    assert robot.dropped == {"decode.oversize": 1}
+
+
+async def test_full_inbox_drops_external_messages(start_robot) -> None:
+    transport = MemoryTransport()
+
+    class Stuck(Layer):
+        async def handle_msg(self, msg: Message) -> None:
+            await asyncio.Event().wait()  # never returns: the inbox fills up
+
+    receiver = await start_robot(1, [Stuck()], transport=transport, queue_limit=5)
+    sender = recorders(1)
+    await start_robot(2, sender, transport=transport)
+    sender[0].send(1, Note("first", []))
+    await settle()  # the layer is now stuck handling "first"
+    for i in range(10):
+        sender[0].send(1, Note(str(i), []))
+    await settle()
+    assert receiver.dropped == {"queue_full": 5}  # five wait in the inbox, five were refused
+    assert len(receiver.layers[0]._inbox) == 5
+
+
+async def test_virtual_time_refuses_udp() -> None:
+    robot = Robot(1, [Layer()], transport=UdpTransport(), clock=VirtualClock())
+    with pytest.raises(ConfigurationError, match="VirtualClock needs the virtual-time event loop"):
+        async with robot:
+            pass
+
+
+def test_virtual_time_with_udp_is_refused_on_the_virtual_loop() -> None:
+    import cas_async
+
+    async def main() -> None:
+        robot = Robot(1, [Layer()], transport=UdpTransport(), clock=VirtualClock())
+        async with robot:
+            pass
+
+    with pytest.raises(ConfigurationError, match="real sockets, which do not run on virtual time"):
+        cas_async.run(main(), virtual=True)
+
+
+@pytest.mark.parametrize("use_uvloop", [False, True], ids=["stdlib", "uvloop"])
+def test_two_robots_over_udp_on_each_event_loop(use_uvloop: bool) -> None:
+    import cas_async
+
+    if use_uvloop and not cas_async.uvloop_available():
+        pytest.skip("uvloop is not installed")
+
+    async def main() -> list[int]:
+        transport = UdpTransport()
+        a, b = recorders(2), recorders(2)
+        b[0].expected = 100
+        async with (
+            Robot(1, a, transport=transport, messages=STACK_MESSAGES),
+            Robot(2, b, transport=transport, messages=STACK_MESSAGES) as robot_b,
+        ):
+            for i in range(100):
+                a[0].send(2, Note(str(i), [i]))
+                if i % 10 == 9:
+                    await asyncio.sleep(0)
+            await asyncio.wait_for(robot_b.run(), 5)
+            answer = await a[1].request(2, Query(4), timeout=5)
+            assert answer.value == 8
+        return [m.hops[0] for m in b[0].external]
+
+    assert cas_async.run(main(), use_uvloop=use_uvloop) == list(range(100))
