@@ -11,12 +11,10 @@ import pytest
 from cas_async import Layer, MemoryTransport, Robot, Transport
 from tests.stacks import STACK_MESSAGES
 
-StartRobot = Callable[..., "asyncio.Future[Robot]"]
-
 
 @pytest.fixture
 async def start_robot() -> AsyncIterator[Callable[..., object]]:
-    """Factory: ``robot = await start_robot(robot_id, layers, transport=...)``, stopped at teardown."""
+    """Factory: ``robot = await start_robot(robot_id, layers, ...)``; stopped at teardown."""
     async with AsyncExitStack() as stack:
 
         async def start(

@@ -54,7 +54,8 @@ async def test_external_messages_reach_the_same_level(start_robot, transport) ->
         1,
     )
     assert [m.text for m in b[2].external] == ["to level 2"]
-    assert not b[0].external and not b[1].internal
+    assert not b[0].external
+    assert not b[1].internal
 
 
 async def test_external_request_and_reply(start_robot, transport) -> None:
@@ -159,7 +160,9 @@ async def test_stack_mismatch_is_refused_counted_and_logged_once(
     refusals = [r for r in caplog.records if "refusing datagrams from robot 2" in r.getMessage()]
     assert len(refusals) == 1
     text = refusals[0].getMessage()
-    assert what in text and "3 layers" in text and "identical stacks" in text
+    assert what in text
+    assert "3 layers" in text
+    assert "identical stacks" in text
 
 
 def _raw_datagram(robot: Robot, *fields: object) -> bytes:

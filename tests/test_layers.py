@@ -154,8 +154,9 @@ async def test_internal_rule_violations_are_dropped_and_counted(
     await settle()
     assert robot.dropped == {reason: 1}
     assert robot.counters()[f"dropped.{reason}"] == 1
-    assert all(not (m.text == "bad") for layer in stack for m in layer.internal)
-    assert reason in caplog.text and "Sender(L" in caplog.text
+    assert all(m.text != "bad" for layer in stack for m in layer.internal)
+    assert reason in caplog.text
+    assert "Sender(L" in caplog.text
 
 
 async def test_external_send_to_own_robot_is_a_violation(start_robot, memory) -> None:

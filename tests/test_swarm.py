@@ -96,4 +96,5 @@ async def test_run_before_start_is_refused() -> None:
     swarm = Swarm([Robot(1, [Layer()])])
     with pytest.raises(RobotStateError, match="start it with `async with swarm:`"):
         await swarm.run()
-    assert len(swarm) == 1 and swarm[1].robot_id == 1
+    assert len(swarm) == 1
+    assert swarm[1].robot_id == 1
