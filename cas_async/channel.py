@@ -1,4 +1,4 @@
-"""A layer's inbox: a single-consumer message channel that can be closed.
+"""A layer's inbox: a single-consumer message channel with an overflow policy.
 
 ``asyncio.Queue`` serves many getters and putters; a layer's inbox has exactly one
 reader (the layer's task), so a deque and one waiter future do the same job with a
@@ -17,8 +17,6 @@ import asyncio
 from collections import deque
 from typing import Final, Generic, TypeVar
 
-from .errors import RobotStateError
-
 __all__ = ["DEFAULT_EXTERNAL_LIMIT", "Channel"]
 
 T = TypeVar("T")
@@ -30,21 +28,15 @@ DEFAULT_EXTERNAL_LIMIT: Final = 10_000
 class Channel(Generic[T]):
     """Many writers, one reader; unbounded for internal traffic, bounded for external."""
 
-    __slots__ = ("_closed", "_items", "_waiter", "limit")
+    __slots__ = ("_items", "_waiter", "limit")
 
     def __init__(self, limit: int = DEFAULT_EXTERNAL_LIMIT) -> None:
         self._items: deque[T] = deque()
         self._waiter: asyncio.Future[None] | None = None
-        self._closed = False
         self.limit = limit
 
     def __len__(self) -> int:
         return len(self._items)
-
-    @property
-    def closed(self) -> bool:
-        """True once :meth:`close` was called."""
-        return self._closed
 
     def put(self, item: T) -> None:
         """Appends an item and wakes the reader; never blocks, never drops."""
@@ -67,20 +59,7 @@ class Channel(Generic[T]):
         return self._items.popleft()
 
     async def wait(self) -> None:
-        """Returns when an item is pending.
-
-        Raises:
-            RobotStateError: the channel is closed and empty.
-        """
+        """Returns when an item is pending (the reader is cancelled to stop it)."""
         while not self._items:
-            if self._closed:
-                raise RobotStateError("channel is closed")
             waiter = self._waiter = asyncio.get_running_loop().create_future()
             await waiter
-
-    def close(self) -> None:
-        """Wakes the reader; :meth:`wait` raises once the pending items are read."""
-        self._closed = True
-        waiter = self._waiter
-        if waiter is not None and not waiter.done():
-            waiter.set_result(None)
