@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import final
 
 from .errors import ConfigurationError
@@ -75,6 +76,18 @@ class Clock(ABC):
         a sequence of actions, unlike a chain of relative sleeps.
         """
         await self.sleep(deadline - self.now())
+
+    def call_later(
+        self, seconds: float, callback: Callable[..., object], *args: object
+    ) -> asyncio.TimerHandle:
+        """Calls ``callback(*args)`` after ``seconds`` of simulated time; cancellable.
+
+        Cheaper than :meth:`timeout` where many deadlines are armed and most are
+        cancelled (request/reply): one timer handle, no context manager.
+        """
+        return asyncio.get_running_loop().call_later(
+            max(0.0, seconds) * self._loop_time_per_sim_second(), callback, *args
+        )
 
     def timeout(self, seconds: float | None) -> asyncio.Timeout:
         """An ``async with`` block that raises ``TimeoutError`` after ``seconds`` simulated."""

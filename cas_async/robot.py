@@ -207,7 +207,7 @@ class Robot:
 
     def _start(self) -> None:
         """Second half of starting: starts the clock and one task per layer."""
-        loop = asyncio.get_running_loop()
+        loop = self._loop = asyncio.get_running_loop()
         self.clock.start()
         self._finished = loop.create_future()
         self._stop_requested = asyncio.Event()

@@ -36,6 +36,7 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "Channel",
         "DEFAULT_EXTERNAL_LIMIT",
         "MAX_UDP_PAYLOAD",
+        "SocketWire",
     }
     exported = set(cas_async.__all__)
     for info in pkgutil.walk_packages(cas_async.__path__, "cas_async."):

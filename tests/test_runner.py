@@ -8,7 +8,7 @@ import pytest
 
 import cas_async
 from cas_async import Robot, UdpTransport, VirtualTimeLoop
-from tests.stacks import STACK_MESSAGES, recorders
+from tests.stacks import STACK_MESSAGES, Note, recorders
 
 
 async def _loop_type() -> type:
@@ -36,10 +36,19 @@ def test_virtual_time_uses_the_virtual_loop() -> None:
     assert cas_async.run(_loop_type(), virtual=True) is VirtualTimeLoop
 
 
-async def test_socket_errors_are_counted_not_raised() -> None:
-    async with Robot(1, recorders(1), transport=UdpTransport(), messages=STACK_MESSAGES) as robot:
-        endpoint = robot._endpoint
-        assert endpoint is not None
-        # What the loop calls when the kernel reports e.g. ICMP port unreachable.
-        endpoint._transport.get_protocol().error_received(ConnectionRefusedError(111, "refused"))  # type: ignore[attr-defined]
-        assert robot.dropped == {"transport.socket_error": 1}
+@pytest.mark.parametrize("use_uvloop", [False, True], ids=["stdlib", "uvloop"])
+def test_socket_errors_are_counted_not_raised(use_uvloop: bool) -> None:
+    if use_uvloop and not cas_async.uvloop_available():
+        pytest.skip("uvloop is not installed")
+
+    async def main() -> dict[str, int]:
+        transport = UdpTransport()
+        transport.directory.add(9, "127.0.0.1", 0)  # the kernel refuses to send to port 0
+        stack = recorders(1)
+        async with Robot(1, stack, transport=transport, messages=STACK_MESSAGES) as robot:
+            stack[0].send(9, Note("nowhere", []))
+            for _ in range(20):
+                await asyncio.sleep(0)
+            return robot.dropped
+
+    assert cas_async.run(main(), use_uvloop=use_uvloop) == {"transport.socket_error": 1}

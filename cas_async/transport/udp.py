@@ -17,11 +17,12 @@ import asyncio
 import contextlib
 import socket
 from collections.abc import Iterable, Iterator, Mapping
-from typing import Any, Final, final
+from typing import Any, Final, Protocol, final
 
 from .._types import Address, RobotId
 from ..errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .base import DatagramSink, Endpoint, Transport
+from .udp_socket import SocketWire
 
 __all__ = ["MAX_UDP_PAYLOAD", "UdpDirectory", "UdpTransport"]
 
@@ -72,6 +73,14 @@ class UdpDirectory:
         return f"UdpDirectory({self._addresses!r})"
 
 
+class _Wire(Protocol):
+    """What an endpoint sends through: an asyncio transport or a :class:`SocketWire`."""
+
+    def sendto(self, data: bytes, addr: Any) -> None: ...
+    def close(self) -> None: ...
+    def get_extra_info(self, name: str) -> Any: ...
+
+
 class _Protocol(asyncio.DatagramProtocol):
     __slots__ = ("_sink",)
 
@@ -93,7 +102,7 @@ class UdpEndpoint(Endpoint):
     def __init__(
         self,
         robot_id: RobotId,
-        transport: asyncio.DatagramTransport,
+        transport: _Wire,
         directory: UdpDirectory,
         address: HostPort,
     ) -> None:
@@ -166,9 +175,7 @@ class UdpTransport(Transport):
         bind = self.directory.get(robot_id) or (self.host, 0)
         loop = asyncio.get_running_loop()
         try:
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _Protocol(sink), local_addr=bind
-            )
+            transport = await self._bind(loop, bind, sink)
         except OSError as exc:
             raise ConfigurationError(f"robot {robot_id}: cannot bind UDP {bind}: {exc}") from exc
         sock = transport.get_extra_info("socket")
@@ -185,6 +192,21 @@ class UdpTransport(Transport):
             robot_id, transport, self.directory, (host, port)
         )
         return endpoint
+
+    @staticmethod
+    async def _bind(loop: asyncio.AbstractEventLoop, bind: HostPort, sink: DatagramSink) -> _Wire:
+        if isinstance(loop, asyncio.SelectorEventLoop):  # the stdlib loop: read in batches
+            infos = await loop.getaddrinfo(*bind, type=socket.SOCK_DGRAM)
+            family, kind, proto, _, address = infos[0]
+            sock = socket.socket(family, kind, proto)
+            try:
+                sock.bind(address)
+            except OSError:
+                sock.close()
+                raise
+            return SocketWire(loop, sock, sink)
+        transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(sink), local_addr=bind)
+        return transport
 
     def __repr__(self) -> str:
         return f"UdpTransport(host={self.host!r}, {len(self.directory)} robots)"

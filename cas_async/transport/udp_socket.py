@@ -1,0 +1,92 @@
+"""A UDP socket driven directly by a selector event loop, reading in batches.
+
+The stdlib loop's datagram transport reads one datagram per loop pass into a fresh
+256 KiB buffer: a burst then costs one loop pass (and one task wake-up in the
+receiving layer) per datagram, and glibc may serve each buffer with an mmap. Here
+the socket is read until empty (at most ``BATCH`` datagrams per readable event),
+so a burst arrives as one batch. Sends go straight to ``sendto``; when the kernel
+buffer is full they wait in a queue flushed when the socket is writable, as the
+asyncio transport does. uvloop already batches, and keeps its own transport.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+from collections import deque
+from typing import Any, Final
+
+from .base import DatagramSink
+
+__all__ = ["SocketWire"]
+
+BATCH: Final = 64
+"""Datagrams read per readable event at most, so one busy socket cannot starve the loop."""
+
+_RECV_SIZE: Final = 65_536
+
+
+class SocketWire:
+    """Sends and receives datagrams on one non-blocking socket."""
+
+    __slots__ = ("_backlog", "_loop", "_sink", "_sock")
+
+    def __init__(
+        self, loop: asyncio.AbstractEventLoop, sock: socket.socket, sink: DatagramSink
+    ) -> None:
+        sock.setblocking(False)
+        self._loop = loop
+        self._sock = sock
+        self._sink = sink
+        self._backlog: deque[tuple[bytes, Any]] = deque()
+        loop.add_reader(sock.fileno(), self._read_ready)
+
+    def get_extra_info(self, name: str) -> Any:
+        """``"socket"`` and ``"sockname"``, as an asyncio transport answers them."""
+        return {"socket": self._sock, "sockname": self._sock.getsockname()}.get(name)
+
+    def _read_ready(self) -> None:
+        recv, sink = self._sock.recv, self._sink
+        for _ in range(BATCH):
+            try:
+                data = recv(_RECV_SIZE)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:  # e.g. ICMP port unreachable reported on the socket
+                sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+                return
+            sink.datagram_received(data)
+
+    def sendto(self, data: bytes, addr: Any) -> None:
+        """Sends now, or queues until the socket is writable (never blocks)."""
+        if not self._backlog:
+            try:
+                self._sock.sendto(data, addr)
+                return
+            except (BlockingIOError, InterruptedError):
+                self._loop.add_writer(self._sock.fileno(), self._write_ready)
+            except OSError as exc:
+                self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+                return
+        self._backlog.append((data, addr))
+
+    def _write_ready(self) -> None:
+        backlog = self._backlog
+        while backlog:
+            data, addr = backlog[0]
+            try:
+                self._sock.sendto(data, addr)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:
+                self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+            backlog.popleft()
+        self._loop.remove_writer(self._sock.fileno())
+
+    def close(self) -> None:
+        """Stops reading and writing and closes the socket (queued datagrams are lost)."""
+        if self._sock.fileno() >= 0:
+            self._loop.remove_reader(self._sock.fileno())
+            self._loop.remove_writer(self._sock.fileno())
+            self._sock.close()
+        self._backlog.clear()
