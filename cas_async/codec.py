@@ -86,6 +86,7 @@ def _compile(spec: MessageSpec) -> _Compiled:
         "_types": _MSG_TYPES,
         "_bad_header": _bad_header,
         "DecodeError": DecodeError,
+        "_name": spec.name,
     }
     fast = []
     lines = [
@@ -122,7 +123,7 @@ def _compile(spec: MessageSpec) -> _Compiled:
                 "    try:",
                 "        m.__post_init__()",
                 "    except Exception as exc:",
-                f"        raise DecodeError(f'{spec.name}: rejected by __post_init__: {{exc}}',"
+                "        raise DecodeError(f'{_name}: rejected by __post_init__: {exc}',"
                 " 'wrong_type') from None",
             ]
         )
@@ -207,7 +208,7 @@ class Codec:
         if type(t) is not tuple or len(t) < _HEADER_LEN:
             raise DecodeError("not a datagram: expected an array with a header", "bad_header")
         fingerprint, tid = t[0], t[1]
-        if fingerprint != self.fingerprint:
+        if type(fingerprint) is not int or fingerprint != self.fingerprint:
             if type(fingerprint) is int and type(t[4]) is int:
                 raise StackMismatchError(
                     f"datagram from robot {t[4]} has stack fingerprint {fingerprint:#010x} "
@@ -227,7 +228,10 @@ class Codec:
                 f"got {len(t) - _HEADER_LEN}",
                 "wrong_arity",
             )
-        return entry.decode(t)
+        try:
+            return entry.decode(t)
+        except RecursionError:  # bare list/dict fields or recursive messages, nested deeply
+            raise DecodeError(f"{entry.spec.name}: values nest too deeply", "wrong_type") from None
 
 
 def _which_field(msg: Message, entry: _Compiled) -> str:

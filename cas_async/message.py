@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import inspect
 import typing
 import zlib
 from collections.abc import Callable, Iterable, Iterator
@@ -66,7 +67,8 @@ class Message:
         body = ", ".join(f"{name}={getattr(self, name)!r}" for name in names)
         return (
             f"{type(self).__name__}({body}) "
-            f"[#{self.msg_id} {self.msg_type.name} robot {self.robot_id} "
+            f"[#{self.msg_id} {getattr(self.msg_type, 'name', self.msg_type)} "
+            f"robot {self.robot_id} "
             f"L{self.src_layer}->L{self.dst_layer}"
             + (f" reply to #{self.corr_id}]" if self.corr_id else "]")
         )
@@ -120,19 +122,18 @@ def _register(cls: type[Message], name: str | None, type_id: int | None) -> Mess
     except Exception as exc:
         raise MessageDefinitionError(f"{name}: cannot resolve field annotations: {exc}") from exc
     fields = [f for f in dataclasses.fields(cls) if f.name not in HEADER_FIELDS]
-    for clash in set(cls.__annotations__) & set(HEADER_FIELDS):
-        raise MessageDefinitionError(f"{name}.{clash}: the name is taken by the message header")
     types_ = tuple(field_type(hints[f.name], f"{name}.{f.name}", Message) for f in fields)
     spec = MessageSpec(cls, name, tid, tuple(f.name for f in fields), types_)
-    for existing in (_by_name.get(name), _by_id.get(tid)):
-        if existing is not None and not _same_class(existing.cls, cls):
+    found = [e for e in (_by_name.get(name), _by_id.get(tid)) if e is not None]
+    for existing in found:  # check both before dropping anything: a refusal changes nothing
+        if not _same_class(existing.cls, cls):
             raise MessageDefinitionError(
                 f"cannot register {cls.__module__}.{cls.__qualname__} as {name!r} (id {tid}): "
                 f"{existing.cls.__module__}.{existing.cls.__qualname__} is registered as "
                 f"{existing.name!r} (id {existing.type_id}); pass @message(name=...) or type_id=..."
             )
-        if existing is not None:
-            _unregister(existing)
+    for existing in found:
+        _unregister(existing)
     _by_id[tid] = _by_class[cls] = _by_name[name] = spec
     return spec
 
@@ -165,9 +166,16 @@ def message(
     """
 
     def wrap(klass: type[M]) -> type[M]:
-        if not (isinstance(klass, type) and issubclass(klass, Message)):
+        if not (isinstance(klass, type) and issubclass(klass, Message)) or klass is Message:
             raise MessageDefinitionError(f"@message needs a subclass of Message, got {klass!r}")
-        made = dataclasses.dataclass(slots=True, repr=False)(klass)
+        where = name or klass.__name__
+        # Before dataclass(): a header name redeclared with a default makes it fail first.
+        for clash in sorted(set(inspect.get_annotations(klass)) & set(HEADER_FIELDS)):
+            raise MessageDefinitionError(f"{where}.{clash}: the name is taken by the header")
+        try:
+            made = dataclasses.dataclass(slots=True, repr=False)(klass)
+        except (TypeError, ValueError) as exc:  # field order, @message applied twice...
+            raise MessageDefinitionError(f"{where}: {exc}") from exc
         _register(made, name, type_id)
         return made
 

@@ -20,6 +20,7 @@ subclasses, ``numpy.ndarray`` (numeric dtypes) and nested messages.
 from __future__ import annotations
 
 import enum
+import re
 import types
 import typing
 from collections.abc import Callable
@@ -39,6 +40,9 @@ Convert = Callable[[Any, str], Any]
 # Object, string and void dtypes are refused (object arrays would mean pickle).
 _NUMERIC_KINDS: Final = frozenset("biufc")
 _MAX_NDIM: Final = 32
+# What ndarray_to_wire writes (``array.dtype.str``): byte order, kind, item size. Anything
+# else is refused before numpy parses it (numpy accepts, and warns about, many aliases).
+_DTYPE_TEXT: Final = re.compile(r"[<>|=]?[biufc][0-9]{1,2}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,7 +57,7 @@ class FieldType:
 
 
 def _describe(value: Any) -> str:
-    return "array" if isinstance(value, tuple) else type(value).__name__
+    return "array" if type(value) is tuple else type(value).__name__  # not ExtType
 
 
 def _fail(path: str, expected: str, value: Any) -> DecodeError:
@@ -103,7 +107,7 @@ def _plain_convert(value: Any, path: str) -> Any:
         return [_plain_convert(item, f"{path}[{i}]") for i, item in enumerate(value)]
     if kind is dict:
         return {
-            _plain_key(key, path): _plain_convert(item, f"{path}[{key!r}]")
+            _plain_key(key, f"{path} key"): _plain_convert(item, f"{path}[{key!r}]")
             for key, item in value.items()
         }
     raise _fail(path, "a plain value", value)
@@ -112,7 +116,7 @@ def _plain_convert(value: Any, path: str) -> Any:
 def _plain_key(key: Any, path: str) -> Any:
     if type(key) in (int, float, bool, str, bytes) or key is None:
         return key
-    raise _fail(f"{path} key", "a plain key", key)
+    raise _fail(path, "a plain key", key)
 
 
 def _sequence(item: FieldType, make: Callable[[Any], Any], name: str) -> Convert:
@@ -156,10 +160,13 @@ def _mapping(key: FieldType, val: FieldType, name: str) -> Convert:
     def convert(value: Any, path: str) -> dict[Any, Any]:
         if type(value) is not dict:
             raise _fail(path, name, value)
-        return {
-            key.convert(k, f"{path} key"): val.convert(v, f"{path}[{k!r}]")
-            for k, v in value.items()
-        }
+        try:
+            return {
+                key.convert(k, f"{path} key"): val.convert(v, f"{path}[{k!r}]")
+                for k, v in value.items()
+            }
+        except TypeError:  # a converted key is unhashable (e.g. dict[list[int], ...])
+            raise DecodeError(f"{path}: unhashable key", "wrong_type") from None
 
     return convert
 
@@ -199,12 +206,14 @@ def _ndarray_convert(value: Any, path: str) -> np.ndarray[Any, Any]:
     dtype_text, shape, data = value
     if type(dtype_text) is not str or type(shape) is not tuple or type(data) is not bytes:
         raise _fail(path, "ndarray [dtype, shape, data]", value)
+    if _DTYPE_TEXT.fullmatch(dtype_text) is None:
+        raise DecodeError(
+            f"{path}: dtype {dtype_text!r} is not a numeric dtype code like '<f8'", "wrong_type"
+        )
     try:
         dtype = np.dtype(dtype_text)
     except TypeError:
         raise DecodeError(f"{path}: unknown dtype {dtype_text!r}", "wrong_type") from None
-    if dtype.kind not in _NUMERIC_KINDS:
-        raise DecodeError(f"{path}: dtype {dtype_text!r} is not numeric", "wrong_type")
     if len(shape) > _MAX_NDIM or not all(type(n) is int and n >= 0 for n in shape):
         raise DecodeError(f"{path}: bad shape {shape!r}", "wrong_type")
     count = 1
@@ -216,8 +225,11 @@ def _ndarray_convert(value: Any, path: str) -> np.ndarray[Any, Any]:
             f"got {len(data)}",
             "wrong_type",
         )
-    # copy(): frombuffer over bytes is read-only; users expect a normal array.
-    return np.frombuffer(data, dtype=dtype).reshape(shape).copy()
+    try:
+        # copy(): frombuffer over bytes is read-only; users expect a normal array.
+        return np.frombuffer(data, dtype=dtype).reshape(shape).copy()
+    except ValueError:  # e.g. shape (0, 2**62, 2**62): no data, but too big for numpy
+        raise DecodeError(f"{path}: bad shape {shape!r}", "wrong_type") from None
 
 
 def ndarray_to_wire(array: np.ndarray[Any, Any]) -> tuple[str, tuple[int, ...], bytes]:
