@@ -7,7 +7,7 @@ README for the thesis-to-API map.
 
 from ._types import Address, Level, RobotId
 from .clock import Clock, ScaledClock, VirtualClock
-from .codec import DEFAULT_MAX_DATAGRAM, Codec, describe_fingerprint, stack_fingerprint
+from .codec import DEFAULT_MAX_DATAGRAM, Codec
 from .counters import LayerCounters
 from .errors import (
     CasError,
@@ -21,6 +21,7 @@ from .errors import (
     StackMismatchError,
     UnknownRobotError,
 )
+from .fingerprint import describe_fingerprint, stack_fingerprint
 from .layer import Layer
 from .message import Message, MessageSpec, MsgType, message, spec_of
 from .robot import Robot, RobotState

@@ -15,40 +15,22 @@ ever unpickled.
 
 from __future__ import annotations
 
-import operator
-import zlib
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import Any, Final
 
 import msgpack
 import numpy as np
+from msgpack import unpackb as _unpackb
 
-from .errors import DecodeError, EncodeError, StackMismatchError
-from .message import HEADER_FIELDS, Message, MessageSpec, MsgType, nested_to_wire, spec_of
+from .codegen import compiled, undispatchable
+from .errors import DecodeError, EncodeError
+from .message import Message, MessageSpec, nested_to_wire, spec_of
 from .schema import ndarray_to_wire
 
-__all__ = ["DEFAULT_MAX_DATAGRAM", "Codec", "describe_fingerprint", "stack_fingerprint"]
+__all__ = ["DEFAULT_MAX_DATAGRAM", "Codec"]
 
 DEFAULT_MAX_DATAGRAM: Final = 64 * 1024
 """Largest datagram encoded or accepted, in bytes, unless configured otherwise."""
-
-_HEADER_LEN: Final = 2 + len(HEADER_FIELDS)  # fingerprint and type id, then the header
-_MSG_TYPES: Final = {int(t): t for t in MsgType}
-
-
-def stack_fingerprint(layer_count: int, specs: Mapping[int, MessageSpec]) -> int:
-    """A 32-bit summary of a robot's stack: layer count (top byte) and message set.
-
-    Robots may only talk when their fingerprints are equal (DESIGN rule 5).
-    """
-    text = "\n".join(spec.schema for _, spec in sorted(specs.items()))
-    return ((layer_count & 0xFF) << 24) | (zlib.crc32(text.encode()) & 0xFFFFFF)
-
-
-def describe_fingerprint(fingerprint: int) -> str:
-    """Human-readable form: ``"5 layers, message set 0x1a2b3c"``."""
-    return f"{fingerprint >> 24} layers, message set {fingerprint & 0xFFFFFF:#08x}"
 
 
 def _encode_default(obj: Any) -> Any:
@@ -60,87 +42,6 @@ def _encode_default(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()
     raise TypeError(f"cannot encode a value of type {type(obj).__qualname__}")
-
-
-@dataclass(frozen=True, slots=True)
-class _Compiled:
-    """The generated per-class encoder getter and decoder."""
-
-    spec: MessageSpec
-    arity: int
-    getter: Callable[[Message], tuple[Any, ...]]
-    decode: Callable[[tuple[Any, ...]], Message]
-
-
-def _bad_header(t: tuple[Any, ...]) -> None:
-    raise DecodeError(f"bad header {t[2:_HEADER_LEN]!r}: expected six ints", "bad_header")
-
-
-def _compile(spec: MessageSpec) -> _Compiled:
-    """Generates the decoder of one message class (see the module docstring)."""
-    n = len(spec.field_names)
-    names = [f"v{i}" for i in range(n)]
-    namespace: dict[str, Any] = {
-        "_cls": spec.cls,
-        "_new": object.__new__,
-        "_types": _MSG_TYPES,
-        "_bad_header": _bad_header,
-        "DecodeError": DecodeError,
-        "_name": spec.name,
-    }
-    fast = []
-    lines = [
-        "def decode(t):",
-        f"    _fp, _tid, mid, mt, rid, src, dst, corr{''.join(', ' + v for v in names)} = t",
-        "    if not (type(mid) is int and type(mt) is int and type(rid) is int"
-        " and type(src) is int and type(dst) is int and type(corr) is int):",
-        "        _bad_header(t)",
-        "    mt = _types.get(mt)",
-        "    if mt is None:",
-        "        _bad_header(t)",
-    ]
-    slow = []
-    for i, (attr, kind) in enumerate(zip(spec.field_names, spec.field_types, strict=True)):
-        namespace[f"_c{i}"] = kind.convert
-        call = f"v{i} = _c{i}(v{i}, {spec.name + '.' + attr!r})"
-        if kind.fast_check is not None:
-            fast.append(kind.fast_check.format(v=f"v{i}"))
-            slow.append(call)
-        else:
-            lines.append(f"    {call}")
-    if fast:
-        lines.append(f"    if not ({' and '.join(fast)}):")
-        lines.extend(f"        {call}" for call in slow)
-    lines.append("    m = _new(_cls)")
-    lines.append(
-        "    m.msg_id = mid; m.msg_type = mt; m.robot_id = rid; "
-        "m.src_layer = src; m.dst_layer = dst; m.corr_id = corr"
-    )
-    lines.extend(f"    m.{attr} = v{i}" for i, attr in enumerate(spec.field_names))
-    if hasattr(spec.cls, "__post_init__"):
-        lines.extend(
-            [
-                "    try:",
-                "        m.__post_init__()",
-                "    except Exception as exc:",
-                "        raise DecodeError(f'{_name}: rejected by __post_init__: {exc}',"
-                " 'wrong_type') from None",
-            ]
-        )
-    lines.append("    return m")
-    exec("\n".join(lines), namespace)
-    getter = operator.attrgetter(*HEADER_FIELDS, *spec.field_names)
-    return _Compiled(spec, _HEADER_LEN + n, getter, namespace["decode"])
-
-
-_compiled: dict[MessageSpec, _Compiled] = {}
-
-
-def _compiled_for(spec: MessageSpec) -> _Compiled:
-    entry = _compiled.get(spec)
-    if entry is None:
-        entry = _compiled[spec] = _compile(spec)
-    return entry
 
 
 class Codec:
@@ -164,8 +65,9 @@ class Codec:
             raise ValueError(f"max_size must be at least 64 bytes, got {max_size}")
         self.fingerprint = fingerprint
         self.max_size = max_size
-        self._by_id = {tid: _compiled_for(spec) for tid, spec in specs.items()}
-        self._by_class = {c.spec.cls: c for c in self._by_id.values()}
+        generated = [compiled(spec) for spec in specs.values()]
+        self._by_id = {c.spec.type_id: c.decode for c in generated}
+        self._by_class = {c.spec.cls: c for c in generated}
         self._pack = msgpack.Packer(default=_encode_default, use_bin_type=True).pack
 
     def encode(self, msg: Message) -> bytes:
@@ -180,10 +82,10 @@ class Codec:
             spec = spec_of(type(msg))  # raises when @message was forgotten
             raise EncodeError(f"{spec.name} is not among the messages this robot's stack accepts")
         try:
-            data: bytes = self._pack((self.fingerprint, entry.spec.type_id, *entry.getter(msg)))
+            data = entry.encode(msg, self.fingerprint, self._pack)
         except (TypeError, ValueError, OverflowError) as exc:
             raise EncodeError(
-                f"cannot encode {entry.spec.name}: {_which_field(msg, entry)}{exc}"
+                f"cannot encode {entry.spec.name}: {_which_field(msg, entry.spec)}{exc}"
             ) from exc
         if len(data) > self.max_size:
             raise EncodeError(
@@ -202,42 +104,23 @@ class Codec:
         if len(data) > self.max_size:
             raise DecodeError(f"{len(data)} bytes, above the limit of {self.max_size}", "oversize")
         try:
-            t = msgpack.unpackb(data, use_list=False, raw=False, strict_map_key=False)
+            t = _unpackb(data, use_list=False, strict_map_key=False)
         except Exception as exc:  # the unpacker raises many types; all mean "malformed"
             raise DecodeError(f"not a msgpack datagram: {type(exc).__name__}: {exc}") from None
-        if type(t) is not tuple or len(t) < _HEADER_LEN:
-            raise DecodeError("not a datagram: expected an array with a header", "bad_header")
-        fingerprint, tid = t[0], t[1]
-        if type(fingerprint) is not int or fingerprint != self.fingerprint:
-            if type(fingerprint) is int and type(t[4]) is int:
-                raise StackMismatchError(
-                    f"datagram from robot {t[4]} has stack fingerprint {fingerprint:#010x} "
-                    f"({describe_fingerprint(fingerprint)}), ours is {self.fingerprint:#010x} "
-                    f"({describe_fingerprint(self.fingerprint)})",
-                    t[4],
-                    fingerprint,
-                    self.fingerprint,
-                )
-            raise DecodeError("bad fingerprint in header", "bad_header")
-        entry = self._by_id.get(tid) if type(tid) is int else None
-        if entry is None:
-            raise DecodeError(f"unknown message type id {tid!r}", "unknown_type")
-        if len(t) != entry.arity:
-            raise DecodeError(
-                f"{entry.spec.name}: expected {entry.arity - _HEADER_LEN} fields, "
-                f"got {len(t) - _HEADER_LEN}",
-                "wrong_arity",
-            )
         try:
-            return entry.decode(t)
+            decode = self._by_id[t[1]]
+        except Exception:  # not an array, too short, unhashable or unknown type id
+            raise undispatchable(t, self.fingerprint) from None
+        try:
+            return decode(t, self.fingerprint)  # checks the header, fingerprint included
         except RecursionError:  # bare list/dict fields or recursive messages, nested deeply
-            raise DecodeError(f"{entry.spec.name}: values nest too deeply", "wrong_type") from None
+            raise DecodeError("values nest too deeply", "wrong_type") from None
 
 
-def _which_field(msg: Message, entry: _Compiled) -> str:
+def _which_field(msg: Message, spec: MessageSpec) -> str:
     """Names the first field msgpack refuses, to make encode errors actionable."""
     pack = msgpack.Packer(default=_encode_default, use_bin_type=True).pack
-    for attr in entry.spec.field_names:
+    for attr in spec.field_names:
         try:
             pack(getattr(msg, attr))
         except (TypeError, ValueError, OverflowError):

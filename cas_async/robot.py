@@ -27,7 +27,7 @@ from typing import final
 from ._types import Address, RobotId
 from .channel import DEFAULT_EXTERNAL_LIMIT
 from .clock import Clock, ScaledClock
-from .codec import DEFAULT_MAX_DATAGRAM, Codec, describe_fingerprint, stack_fingerprint
+from .codec import DEFAULT_MAX_DATAGRAM, Codec
 from .counters import LayerCounters
 from .errors import (
     ConfigurationError,
@@ -37,6 +37,7 @@ from .errors import (
     StackMismatchError,
     UnknownRobotError,
 )
+from .fingerprint import describe_fingerprint, stack_fingerprint
 from .layer import Layer
 from .logs import DropLog, logger_for
 from .message import Message, specs_for

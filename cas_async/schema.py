@@ -54,6 +54,10 @@ class FieldType:
     fast_check: str | None = None
     exact: type | None = None
     """Set when wire values of this type are used as they are (``int``, ``str``...)."""
+    container: type | None = None
+    """``list`` or ``tuple`` for ``list[T]`` / ``tuple[T, ...]`` whose elements are used
+    as they are; ``elements`` is then their type, and decoders inline the check."""
+    elements: type | None = None
 
 
 def _describe(value: Any) -> str:
@@ -282,11 +286,14 @@ def field_type(annotation: Any, where: str, message_base: type) -> FieldType:
         return _union(options, " | ".join(o.text for o in options))
     if origin is list and len(args) == 1:
         item = field_type(args[0], where, message_base)
-        return FieldType(f"list[{item.text}]", _sequence(item, list, f"list[{item.text}]"))
+        name = f"list[{item.text}]"
+        container: type | None = list if item.exact is not None else None
+        return FieldType(name, _sequence(item, list, name), None, None, container, item.exact)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         item = field_type(args[0], where, message_base)
         name = f"tuple[{item.text}, ...]"
-        return FieldType(name, _sequence(item, tuple, name))
+        container_t: type | None = tuple if item.exact is not None else None
+        return FieldType(name, _sequence(item, tuple, name), None, None, container_t, item.exact)
     if origin is tuple and args:
         items = tuple(field_type(a, where, message_base) for a in args)
         name = f"tuple[{', '.join(i.text for i in items)}]"

@@ -37,6 +37,10 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "DEFAULT_EXTERNAL_LIMIT",
         "MAX_UDP_PAYLOAD",
         "SocketWire",
+        "HEADER_LEN",
+        "Compiled",
+        "compiled",
+        "undispatchable",
     }
     exported = set(cas_async.__all__)
     for info in pkgutil.walk_packages(cas_async.__path__, "cas_async."):
