@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import asyncio
 from abc import ABC, abstractmethod
-from collections.abc import Callable
 from typing import final
 
 from .errors import ConfigurationError
@@ -77,17 +76,13 @@ class Clock(ABC):
         """
         await self.sleep(deadline - self.now())
 
-    def call_later(
-        self, seconds: float, callback: Callable[..., object], *args: object
-    ) -> asyncio.TimerHandle:
-        """Calls ``callback(*args)`` after ``seconds`` of simulated time; cancellable.
+    def loop_deadline(self, seconds: float) -> float:
+        """The event-loop time at which ``seconds`` of simulated time from now will have passed.
 
-        Cheaper than :meth:`timeout` where many deadlines are armed and most are
-        cancelled (request/reply): one timer handle, no context manager.
+        For code that schedules many deadlines on the loop itself (request timeouts).
         """
-        return asyncio.get_running_loop().call_later(
-            max(0.0, seconds) * self._loop_time_per_sim_second(), callback, *args
-        )
+        loop = asyncio.get_running_loop()
+        return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second()
 
     def timeout(self, seconds: float | None) -> asyncio.Timeout:
         """An ``async with`` block that raises ``TimeoutError`` after ``seconds`` simulated."""

@@ -19,7 +19,6 @@ violations are dropped, counted by reason and logged, never delivered.
 from __future__ import annotations
 
 import asyncio
-from collections import deque
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, ClassVar, Final
 
@@ -30,6 +29,7 @@ from .counters import LayerCounters
 from .errors import RequestTimeout, RobotStateError, UnknownRobotError
 from .logs import PrefixLogger
 from .message import Message, MsgType
+from .requests import PendingRequests
 
 if TYPE_CHECKING:
     from .robot import Robot
@@ -37,17 +37,6 @@ if TYPE_CHECKING:
 __all__ = ["Layer"]
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
-_EXPIRED_MEMORY: Final = 1024  # recent timed-out request ids remembered to drop late replies
-
-
-class _Waiter:
-    """A request waiting for its reply."""
-
-    __slots__ = ("future", "peer")
-
-    def __init__(self, future: asyncio.Future[Message], peer: RobotId | None) -> None:
-        self.future = future
-        self.peer = peer  # robot expected to answer an external request; None if internal
 
 
 class Layer:
@@ -134,8 +123,7 @@ class Layer:
         self._log = log
         self._counters = LayerCounters()
         self._inbox: Channel[Message] = Channel(robot.queue_limit)
-        self._waiting: dict[int, _Waiter] = {}
-        self._expired: deque[int] = deque(maxlen=_EXPIRED_MEMORY)
+        self._requests = PendingRequests(log.prefix.rstrip(": "), robot._drop)
 
     def _check_live(self) -> Robot:
         robot = self._robot
@@ -282,14 +270,13 @@ class Layer:
             robot._violation("to_own_robot", self, msg)
             raise self._nobody_to_ask(f"robot {robot_id} is this robot")
         self._stamp(robot, msg, self._level)
-        waiter = self._expect(msg.msg_id, robot_id)
+        reply = self._expect(robot, msg, robot_id, timeout)
         try:
             robot._send_external(robot_id, msg)
-        except BaseException:
-            del self._waiting[msg.msg_id]
-            raise
-        self._counters.sent_external += 1
-        return await self._wait_reply(waiter, msg, f"robot {robot_id}", timeout)
+            self._counters.sent_external += 1
+            return await reply
+        finally:
+            self._requests.forget(msg.msg_id)
 
     async def request_down(self, msg: Message, *, timeout: float | None = None) -> Message:
         """Sends a NEGOTIATION to the layer below and returns its automatic reply."""
@@ -315,10 +302,13 @@ class Layer:
             robot._violation("to_self" if level == self._level else "no_such_layer", self, msg)
             raise self._nobody_to_ask(f"no layer {level} to ask")
         self._stamp(robot, msg, level)
-        waiter = self._expect(msg.msg_id, None)
+        reply = self._expect(robot, msg, None, timeout)
         self._counters.sent_internal += 1
         self._toward(level)._inbox.put(msg)
-        return await self._wait_reply(waiter, msg, f"layer {level}", timeout)
+        try:
+            return await reply
+        finally:
+            self._requests.forget(msg.msg_id)
 
     def _nobody_to_ask(self, why: str) -> RequestTimeout:
         return RequestTimeout(
@@ -326,70 +316,30 @@ class Layer:
             "the request was dropped (see the drop counters)"
         )
 
-    def _expect(self, msg_id: int, peer: RobotId | None) -> _Waiter:
-        waiter = _Waiter(self.robot._loop.create_future(), peer)
-        self._waiting[msg_id] = waiter
-        return waiter
-
-    async def _wait_reply(
-        self, waiter: _Waiter, msg: Message, whom: str, timeout: float | None
-    ) -> Message:
+    def _expect(
+        self, robot: Robot, msg: Message, peer: RobotId | None, timeout: float | None
+    ) -> asyncio.Future[Message]:
         seconds = self.default_request_timeout if timeout is None else timeout
-        # One plain timer per request: most are cancelled, and asyncio.timeout()
-        # costs several microseconds more per round trip.
-        timer = self.robot.clock.call_later(seconds, self._expire, msg, whom, seconds)
-        try:
-            return await waiter.future
-        finally:
-            timer.cancel()
-            self._waiting.pop(msg.msg_id, None)
-
-    def _expire(self, msg: Message, whom: str, seconds: float) -> None:
-        waiter = self._waiting.get(msg.msg_id)
-        if waiter is None or waiter.future.done():
-            return
-        self._expired.append(msg.msg_id)
-        waiter.future.set_exception(
-            RequestTimeout(
-                f"robot {self.robot_id} {type(self).__name__}(L{self._level}): no reply from "
-                f"{whom} to {type(msg).__name__} #{msg.msg_id} within {seconds:g} s"
-            )
-        )
+        return self._requests.expect(msg, peer, seconds, robot.clock.loop_deadline(seconds))
 
     # -- delivery (called by neighbours and by the robot) ----------------------------
 
     def _accept_internal(self, msg: Message) -> None:
         """Takes an internal message; a reply for a waiting request skips the queue."""
-        if msg.corr_id and msg.dst_layer == self._level and self._take_reply(msg):
+        if msg.corr_id and msg.dst_layer == self._level and self._requests.take(msg):
             self._counters.received_internal += 1
             return
         self._inbox.put(msg)
 
     def _accept_external(self, msg: Message) -> None:
         """Takes an external message from the robot (already checked for level)."""
-        if msg.corr_id and self._take_reply(msg):
+        if msg.corr_id and self._requests.take(msg):
             self._counters.received_external += 1
             return
         if not self._inbox.offer(msg):
             self.robot._drop(
                 "queue_full", f"{type(self).__name__}(L{self._level}) inbox full, {msg!r}"
             )
-
-    def _take_reply(self, msg: Message) -> bool:
-        """Resolves the request ``msg`` answers; True when the message was consumed."""
-        waiter = self._waiting.get(msg.corr_id)
-        robot = self.robot
-        if waiter is None:
-            if msg.corr_id in self._expired:
-                robot._drop("late_reply", f"{msg!r} arrived after its request timed out")
-                return True
-            return False  # an unawaited reply is an ordinary message for the hooks
-        if waiter.peer is not None and msg.robot_id != waiter.peer:
-            robot._drop("reply_from_wrong_robot", f"{msg!r}, expected robot {waiter.peer}")
-            return True
-        if not waiter.future.done():
-            waiter.future.set_result(msg)
-        return True
 
     # -- the loop --------------------------------------------------------------------
 

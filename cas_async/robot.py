@@ -252,6 +252,7 @@ class Robot:
     def _close(self) -> None:
         for layer in self.layers:
             layer._live = False
+            layer._requests.close()
         if self._endpoint is not None:
             self._endpoint.close()
         self._state = RobotState.STOPPED
