@@ -36,6 +36,7 @@ class Clock(ABC):
 
     def __init__(self) -> None:
         self._origin: float | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
 
     @property
     @abstractmethod
@@ -54,6 +55,7 @@ class Clock(ABC):
         if self._origin is None:
             loop = asyncio.get_running_loop()
             self.check_loop(loop)
+            self._loop = loop  # kept: get_running_loop() costs a getpid() call on 3.11
             self._origin = loop.time()
 
     def now(self) -> float:
@@ -81,7 +83,7 @@ class Clock(ABC):
 
         For code that schedules many deadlines on the loop itself (request timeouts).
         """
-        loop = asyncio.get_running_loop()
+        loop = self._loop or asyncio.get_running_loop()
         return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second()
 
     def timeout(self, seconds: float | None) -> asyncio.Timeout:

@@ -208,7 +208,7 @@ class Layer:
         msg.robot_id = robot.robot_id
         msg.src_layer = msg.dst_layer = self._level
         msg.corr_id = 0
-        robot._send_external(robot_id, msg)
+        robot._endpoint.send(robot_id, robot._codec.encode(msg))  # type: ignore[union-attr]
         self._counters.sent_external += 1
 
     def broadcast(self, msg: Message, robots: Iterable[RobotId] | None = None) -> None:

@@ -57,6 +57,31 @@ class RobotState(enum.Enum):
         return self.value
 
 
+class _NoTransport(Endpoint):
+    """The endpoint of a robot created without a transport: sending says so."""
+
+    max_datagram_size = DEFAULT_MAX_DATAGRAM
+
+    def __init__(self, robot_id: RobotId) -> None:
+        self.robot_id = robot_id
+
+    @property
+    def address(self) -> Address:
+        return None
+
+    def send(self, robot_id: RobotId, data: bytes) -> None:
+        raise ConfigurationError(
+            f"robot {self.robot_id} has no transport: pass transport=... to Robot to "
+            "send to other robots"
+        )
+
+    def peers(self) -> Iterable[RobotId]:
+        return ()
+
+    def close(self) -> None:
+        pass
+
+
 @final
 class Robot:
     """A robot: layers (index 0 = top), an optional transport, and a clock.
@@ -102,7 +127,7 @@ class Robot:
         self._drops = DropLog(self._log)
         self._mismatches_seen: set[int] = set()
         self._state = RobotState.CREATED
-        self._endpoint: Endpoint | None = None
+        self._endpoint: Endpoint = _NoTransport(robot_id)
         self._codec: Codec | None = None
         self._supervisor: asyncio.Task[None] | None = None
         self._finished: asyncio.Future[None] | None = None
@@ -147,7 +172,7 @@ class Robot:
     @property
     def address(self) -> Address | None:
         """Where other robots reach this one, once started with a transport."""
-        return None if self._endpoint is None else self._endpoint.address
+        return self._endpoint.address
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -253,8 +278,7 @@ class Robot:
         for layer in self.layers:
             layer._live = False
             layer._requests.close()
-        if self._endpoint is not None:
-            self._endpoint.close()
+        self._endpoint.close()
         self._state = RobotState.STOPPED
 
     async def _supervise(self) -> None:
@@ -356,20 +380,12 @@ class Robot:
     # -- external messages (called by layers) --------------------------------------------
 
     def _send_external(self, robot_id: RobotId, msg: Message) -> None:
-        endpoint = self._endpoint
-        if endpoint is None:
-            raise ConfigurationError(
-                f"robot {self.robot_id} has no transport: pass transport=... to Robot to "
-                "send to other robots"
-            )
-        endpoint.send(robot_id, self._codec.encode(msg))  # type: ignore[union-attr]
+        self._endpoint.send(robot_id, self._codec.encode(msg))  # type: ignore[union-attr]
 
     def _broadcast(
         self, msg: Message, robots: Iterable[RobotId] | None
     ) -> tuple[int, list[RobotId]]:
         endpoint = self._endpoint
-        if endpoint is None:
-            raise ConfigurationError(f"robot {self.robot_id} has no transport to broadcast on")
         data = self._codec.encode(msg)  # type: ignore[union-attr]
         sent, unknown = 0, []
         for robot_id in endpoint.peers() if robots is None else robots:
