@@ -4,6 +4,10 @@ Every message is encoded by the sender and decoded by the receiver exactly as ov
 UDP, so behaviour, limits and errors are the same; only the socket is missing.
 Delivery is scheduled with ``loop.call_soon`` (never a re-entrant call into the
 receiver), in send order, which keeps virtual-time runs deterministic.
+
+A datagram in flight when its receiver closes is still handed to the receiver's
+sink, which decides what it means: a stopped robot counts it as ``"not_running"``.
+Nothing sent is lost without a count.
 """
 
 from __future__ import annotations
@@ -47,8 +51,8 @@ class MemoryEndpoint(Endpoint):
         self._loop.call_soon(target._deliver, data)
 
     def _deliver(self, data: bytes) -> None:
-        if not self._closed:
-            self._sink.datagram_received(data)
+        # Also after close: the sink (a stopped robot) counts what arrives late.
+        self._sink.datagram_received(data)
 
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._network._endpoints if rid != self.robot_id]

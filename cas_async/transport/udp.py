@@ -1,10 +1,12 @@
 """The default transport: one asyncio UDP datagram endpoint per robot.
 
-A :class:`UdpDirectory` maps robot ids to ``(host, port)``. Robots started in this
-process with no configured address bind ``host`` (127.0.0.1 by default) on a port
-the OS picks and enter it in the directory; robots in other processes or hosts are
-entered from configuration with :meth:`UdpDirectory.add`. A robot whose own id has
-a configured address binds exactly that address.
+A :class:`UdpDirectory` maps robot ids to ``(host, port)``, hosts as IP literals.
+Robots started in this process with no configured address bind ``host`` (127.0.0.1
+by default) on a port the OS picks, enter it in the directory and remove it again
+when they close; robots in other processes or hosts are entered from configuration
+with :meth:`UdpDirectory.add`. A robot whose own id has a configured address binds
+exactly that address, and the entry outlives the robot: a restarted robot binds the
+same address again, where the others keep sending.
 
 Receive buffers are enlarged (4 MiB asked; the kernel caps it at ``rmem_max``)
 because the stdlib loop reads one datagram per loop pass and a burst would
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ipaddress
 import socket
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any, Final, Protocol, final
@@ -37,8 +40,15 @@ HostPort = tuple[str, int]
 class UdpDirectory:
     """Where each robot listens: ``robot_id -> (host, port)``.
 
+    Hosts are IP literals (IPv4 or IPv6), never hostnames: a send must not resolve a
+    name, because the stdlib loop would block on a DNS lookup for every datagram and
+    uvloop refuses outright. Resolve names once, before entering them.
+
     Args:
         addresses: known addresses, e.g. from a scenario file.
+
+    Raises:
+        ConfigurationError: an address has a hostname or a port outside 0..65535.
     """
 
     def __init__(self, addresses: Mapping[RobotId, HostPort] | None = None) -> None:
@@ -47,7 +57,21 @@ class UdpDirectory:
             self.add(robot_id, host, port)
 
     def add(self, robot_id: RobotId, host: str, port: int) -> None:
-        """Records (or replaces) where ``robot_id`` listens."""
+        """Records (or replaces) where ``robot_id`` listens.
+
+        Raises:
+            ConfigurationError: ``host`` is not an IP literal, or ``port`` is not in
+                0..65535.
+        """
+        try:
+            # ip_address() would also take an int: only a string is an IP literal here.
+            ipaddress.ip_address(host if isinstance(host, str) else "")
+        except ValueError:
+            raise ConfigurationError(
+                f"robot {robot_id}: UDP host must be an IP address (IPv4 or IPv6), got "
+                f"{host!r}; resolve the hostname first (e.g. with socket.getaddrinfo) or "
+                "use 127.0.0.1"
+            ) from None
         if not isinstance(port, int) or not 0 <= port <= 65535:
             raise ConfigurationError(f"robot {robot_id}: port must be in 0..65535, got {port!r}")
         self._addresses[robot_id] = (host, port)
@@ -97,21 +121,40 @@ class _Protocol(asyncio.DatagramProtocol):
 
 @final
 class UdpEndpoint(Endpoint):
-    """A robot's UDP socket."""
+    """A robot's UDP socket.
+
+    Args:
+        robot_id: the robot this socket belongs to.
+        transport: the bound socket.
+        sink: the robot, told about datagrams that could not be sent.
+        directory: where peers are looked up on every send.
+        address: the bound address.
+        registered: the entry :meth:`UdpTransport.open` made in ``directory`` (the
+            bound address), or ``None`` when it kept a configured entry as it was.
+        configured: the entry ``directory`` had before ``open``, put back at close
+            in place of ``registered``.
+    """
 
     def __init__(
         self,
         robot_id: RobotId,
         transport: _Wire,
+        sink: DatagramSink,
         directory: UdpDirectory,
         address: HostPort,
+        *,
+        registered: HostPort | None,
+        configured: HostPort | None,
     ) -> None:
         self.robot_id = robot_id
         self.max_datagram_size = MAX_UDP_PAYLOAD
         self._transport = transport
+        self._sink = sink
         self._addresses = directory._addresses  # read on every send: skip the method call
         self._directory = directory
         self._address = address
+        self._registered = registered
+        self._configured = configured
         self._closed = False
 
     @property
@@ -127,17 +170,34 @@ class UdpEndpoint(Endpoint):
             )
         if self._closed:
             raise RobotStateError(f"robot {self.robot_id}: UDP endpoint is closed")
-        self._transport.sendto(data, addr)
+        try:
+            self._transport.sendto(data, addr)
+        except ValueError as exc:
+            # uvloop raises where the stdlib socket raises OSError (counted by SocketWire):
+            # an IPv6 peer seen from an IPv4 socket or the reverse. A peer the socket cannot
+            # reach is a lost datagram, not a reason to end the sending layer.
+            self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
 
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._addresses if rid != self.robot_id]
 
     def close(self) -> None:
-        if not self._closed:
-            self._closed = True
-            self._transport.close()
-            if self._directory.get(self.robot_id) == self._address:
+        """Closes the socket and undoes this endpoint's directory entry, if it made one.
+
+        A configured address stays (robots elsewhere keep sending there, and a restart
+        binds it again); an address the OS picked is removed, or the configured entry
+        it replaced (port 0) is put back. Nothing changes when someone else has
+        replaced the entry meanwhile.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        self._transport.close()
+        if self._registered is not None and self._directory.get(self.robot_id) == self._registered:
+            if self._configured is None:
                 self._directory.remove(self.robot_id)
+            else:
+                self._directory.add(self.robot_id, *self._configured)
 
 
 @final
@@ -146,7 +206,8 @@ class UdpTransport(Transport):
 
     Args:
         directory: robot addresses; a new empty one when omitted.
-        host: address robots without a configured address bind (loopback by default).
+        host: address robots without a configured address bind (loopback by default);
+            a hostname is resolved when binding, and the directory gets the bound IP.
         receive_buffer: ``SO_RCVBUF`` asked for each socket, in bytes.
         send_buffer: ``SO_SNDBUF`` asked for each socket, in bytes.
     """
@@ -168,11 +229,16 @@ class UdpTransport(Transport):
         self._open: dict[RobotId, UdpEndpoint] = {}
 
     async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
-        """Binds a socket for the robot and enters its address in the directory."""
+        """Binds a socket for the robot: its configured address, else ``host`` on any port.
+
+        The bound address enters the directory unless the robot's configured entry
+        already names it (a configured port 0 is replaced by the port bound).
+        """
         live = self._open.get(robot_id)
         if live is not None and not live._closed:
             raise ConfigurationError(f"robot {robot_id} already has an open UDP endpoint")
-        bind = self.directory.get(robot_id) or (self.host, 0)
+        configured = self.directory.get(robot_id)
+        bind = configured or (self.host, 0)
         loop = asyncio.get_running_loop()
         try:
             transport = await self._bind(loop, bind, sink)
@@ -186,10 +252,20 @@ class UdpTransport(Transport):
             # The kernel may refuse sizes above its cap; its default then stays.
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.SOL_SOCKET, option, size)
+        # The sockname is an IP literal even when ``host`` is a name: fit for the directory.
         host, port = transport.get_extra_info("sockname")[:2]
-        self.directory.add(robot_id, host, port)
+        registered: HostPort | None = None
+        if configured is None or configured[1] == 0:
+            registered = (host, port)
+            self.directory.add(robot_id, host, port)
         endpoint = self._open[robot_id] = UdpEndpoint(
-            robot_id, transport, self.directory, (host, port)
+            robot_id,
+            transport,
+            sink,
+            self.directory,
+            (host, port),
+            registered=registered,
+            configured=configured,
         )
         return endpoint
 

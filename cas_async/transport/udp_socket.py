@@ -5,8 +5,14 @@ The stdlib loop's datagram transport reads one datagram per loop pass into a fre
 receiving layer) per datagram, and glibc may serve each buffer with an mmap. Here
 the socket is read until empty (at most ``BATCH`` datagrams per readable event),
 so a burst arrives as one batch. Sends go straight to ``sendto``; when the kernel
-buffer is full they wait in a queue flushed when the socket is writable, as the
-asyncio transport does. uvloop already batches, and keeps its own transport.
+buffer is full they wait in a backlog flushed when the socket is writable, as the
+asyncio transport does, but bounded (:data:`MAX_BACKLOG`). uvloop already batches,
+and keeps its own transport.
+
+Nothing is lost without a count: the sink's ``transport_dropped`` is called once per
+datagram refused by a full backlog (``"send_backlog_full"``), still in the backlog
+at :meth:`SocketWire.close` (``"unsent_at_close"``), or refused by the socket
+(``"socket_error"``, which also counts errors reported on receive).
 """
 
 from __future__ import annotations
@@ -22,6 +28,16 @@ __all__ = ["SocketWire"]
 
 BATCH: Final = 64
 """Datagrams read per readable event at most, so one busy socket cannot starve the loop."""
+
+MAX_BACKLOG: Final = 1024
+"""Datagrams waiting for a writable socket at most; more are dropped and counted.
+
+A socket that stays unwritable (a send buffer the kernel cannot drain) would
+otherwise grow the backlog, and memory, for as long as layers keep sending. UDP
+promises no delivery, so dropping at a bound breaks no guarantee; 1024 datagrams on
+top of what the kernel buffer holds still ride out a burst, and cap the memory held
+(64 MiB even at the largest datagram size).
+"""
 
 _RECV_SIZE: Final = 65_536
 
@@ -58,8 +74,13 @@ class SocketWire:
             sink.datagram_received(data)
 
     def sendto(self, data: bytes, addr: Any) -> None:
-        """Sends now, or queues until the socket is writable (never blocks)."""
-        if not self._backlog:
+        """Sends now, or queues until the socket is writable (never blocks).
+
+        Behind earlier queued datagrams it queues too, to keep send order; with
+        :data:`MAX_BACKLOG` already queued, the datagram is dropped and counted.
+        """
+        backlog = self._backlog
+        if not backlog:
             try:
                 self._sock.sendto(data, addr)
                 return
@@ -68,7 +89,14 @@ class SocketWire:
             except OSError as exc:
                 self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
                 return
-        self._backlog.append((data, addr))
+        elif len(backlog) >= MAX_BACKLOG:
+            self._sink.transport_dropped(
+                "send_backlog_full",
+                f"datagram of {len(data)} bytes to {addr}: {len(backlog)} already wait "
+                "for the socket to drain",
+            )
+            return
+        backlog.append((data, addr))
 
     def _write_ready(self) -> None:
         backlog = self._backlog
@@ -84,9 +112,15 @@ class SocketWire:
         self._loop.remove_writer(self._sock.fileno())
 
     def close(self) -> None:
-        """Stops reading and writing and closes the socket (queued datagrams are lost)."""
+        """Stops reading and writing and closes the socket; idempotent.
+
+        Datagrams still in the backlog are lost, each counted as ``"unsent_at_close"``.
+        """
         if self._sock.fileno() >= 0:
             self._loop.remove_reader(self._sock.fileno())
             self._loop.remove_writer(self._sock.fileno())
             self._sock.close()
-        self._backlog.clear()
+        backlog, sink = self._backlog, self._sink
+        while backlog:
+            data, addr = backlog.popleft()
+            sink.transport_dropped("unsent_at_close", f"datagram of {len(data)} bytes to {addr}")
