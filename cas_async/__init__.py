@@ -18,6 +18,7 @@ from .errors import (
     MessageDefinitionError,
     RequestTimeout,
     RobotStateError,
+    RuleViolation,
     StackMismatchError,
     UnknownRobotError,
 )
@@ -64,6 +65,7 @@ __all__ = [
     "RobotId",
     "RobotState",
     "RobotStateError",
+    "RuleViolation",
     "ScaledClock",
     "StackMismatchError",
     "Swarm",

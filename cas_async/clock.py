@@ -51,7 +51,17 @@ class Clock(ABC):
         """Raises ``ConfigurationError`` when this clock cannot run on ``loop``."""
 
     def start(self) -> None:
-        """Fixes simulated time 0 at the current instant, if not fixed already."""
+        """Fixes simulated time 0 at the current instant, if not fixed already.
+
+        Raises:
+            ConfigurationError: the clock already runs on another event loop (its
+                time 0 and deadlines belong to that loop's clock).
+        """
+        if self._loop is not None and self._loop is not asyncio.get_running_loop():
+            raise ConfigurationError(
+                f"this {type(self).__name__} was started on another event loop; "
+                "create a new clock for each run"
+            )
         if self._origin is None:
             loop = asyncio.get_running_loop()
             self.check_loop(loop)

@@ -27,10 +27,13 @@ from .errors import DecodeError, EncodeError
 from .message import Message, MessageSpec, nested_to_wire, spec_of
 from .schema import ndarray_to_wire
 
-__all__ = ["DEFAULT_MAX_DATAGRAM", "Codec"]
+__all__ = ["DEFAULT_MAX_DATAGRAM", "MIN_DATAGRAM", "Codec"]
 
 DEFAULT_MAX_DATAGRAM: Final = 64 * 1024
 """Largest datagram encoded or accepted, in bytes, unless configured otherwise."""
+
+MIN_DATAGRAM: Final = 64
+"""Smallest datagram limit accepted: below it not even a header with a small field fits."""
 
 
 def _encode_default(obj: Any) -> Any:
@@ -41,6 +44,8 @@ def _encode_default(obj: Any) -> Any:
         return ndarray_to_wire(obj)
     if isinstance(obj, np.generic):
         return obj.item()
+    if isinstance(obj, int):  # msgpack calls us for ints it cannot carry
+        raise OverflowError(f"{obj} is outside the 64-bit integer range msgpack carries")
     raise TypeError(f"cannot encode a value of type {type(obj).__qualname__}")
 
 
@@ -61,8 +66,8 @@ class Codec:
         fingerprint: int,
         max_size: int = DEFAULT_MAX_DATAGRAM,
     ) -> None:
-        if max_size < 64:
-            raise ValueError(f"max_size must be at least 64 bytes, got {max_size}")
+        if max_size < MIN_DATAGRAM:
+            raise ValueError(f"max_size must be at least {MIN_DATAGRAM} bytes, got {max_size}")
         self.fingerprint = fingerprint
         self.max_size = max_size
         generated = [compiled(spec) for spec in specs.values()]

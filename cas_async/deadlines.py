@@ -29,7 +29,7 @@ class Deadlines:
         expire: called with each live key whose deadline has passed.
     """
 
-    __slots__ = ("_armed_at", "_expire", "_heap", "_live", "_loop", "_timer")
+    __slots__ = ("_armed_at", "_expire", "_heap", "_live", "_timer", "loop")
 
     def __init__(
         self,
@@ -37,7 +37,7 @@ class Deadlines:
         live: Collection[int],
         expire: Callable[[int], None],
     ) -> None:
-        self._loop = loop
+        self.loop = loop
         self._live = live
         self._expire = expire
         self._heap: list[tuple[float, int]] = []
@@ -50,17 +50,14 @@ class Deadlines:
         heapq.heappush(heap, (when, key))
         if self._timer is None or when < self._armed_at:
             self._arm(when)
-        elif len(heap) > 2 * _REBUILD_SLACK and len(heap) > 4 * self._live_count():
+        elif len(heap) > 2 * _REBUILD_SLACK and len(heap) > 4 * len(self._live):
             self._rebuild()
-
-    def _live_count(self) -> int:
-        return len(self._live)
 
     def _arm(self, when: float) -> None:
         if self._timer is not None:
             self._timer.cancel()
         self._armed_at = when
-        self._timer = self._loop.call_at(when, self._fire)
+        self._timer = self.loop.call_at(when, self._fire)
 
     def _fire(self) -> None:
         self._timer = None

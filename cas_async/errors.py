@@ -10,6 +10,7 @@ Hierarchy::
     ├── EncodeError               (also ValueError) a message cannot be encoded
     ├── DecodeError               (also ValueError) bytes are not a valid datagram
     │   └── StackMismatchError    valid bytes from a robot with a different stack
+    ├── RuleViolation             (also ValueError) a request broke a rule of the model
     ├── RequestTimeout            (also TimeoutError) no reply in time
     └── LayerError                a layer raised; the original is ``__cause__``
 
@@ -30,6 +31,7 @@ __all__ = [
     "MessageDefinitionError",
     "RequestTimeout",
     "RobotStateError",
+    "RuleViolation",
     "StackMismatchError",
     "UnknownRobotError",
 ]
@@ -48,7 +50,7 @@ class RobotStateError(CasError):
 
 
 class UnknownRobotError(CasError, LookupError):
-    """The transport knows no address for the robot a message is sent to."""
+    """No such robot: the transport has no address for it, or the Environment no record."""
 
 
 class MessageDefinitionError(CasError, TypeError):
@@ -95,6 +97,14 @@ class StackMismatchError(DecodeError):
         self.sender = sender
         self.theirs = theirs
         self.ours = ours
+
+
+class RuleViolation(CasError, ValueError):
+    """A request broke a rule of the layered model (e.g. asked its own level).
+
+    Plain sends that break a rule are dropped and counted; a request, which must
+    return a reply, also raises this so the caller does not wait for nothing.
+    """
 
 
 class RequestTimeout(CasError, TimeoutError):

@@ -14,11 +14,16 @@ A layer is one level of a robot's stack (thesis §4.2). Users override the hooks
 The runtime owns the loop (one task per layer), forwarding of internal messages
 through intermediate layers, the header, and request/reply correlation. Rule
 violations are dropped, counted by reason and logged, never delivered.
+
+Ownership: once sent, a message object belongs to the runtime, which writes its
+header. Sending the same object again (or answering a request with the request
+object itself) sends a copy, so a message still travelling never changes under it.
 """
 
 from __future__ import annotations
 
 import asyncio
+import copy
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, ClassVar, Final
 
@@ -26,10 +31,10 @@ from ._types import Level, RobotId
 from .channel import Channel
 from .clock import Clock
 from .counters import LayerCounters
-from .errors import RequestTimeout, RobotStateError, UnknownRobotError
+from .errors import RobotStateError, RuleViolation, UnknownRobotError
 from .logs import PrefixLogger
 from .message import Message, MsgType
-from .requests import PendingRequests
+from .requests import PendingRequests, ReplyOutcome
 
 if TYPE_CHECKING:
     from .robot import Robot
@@ -37,6 +42,13 @@ if TYPE_CHECKING:
 __all__ = ["Layer"]
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
+_NOT_A_REPLY: Final = ReplyOutcome.NOT_A_REPLY
+_DELIVERED: Final = ReplyOutcome.DELIVERED
+
+
+def _owned(msg: Message) -> Message:
+    """The object to stamp and send: ``msg`` the first time, a copy if it was sent before."""
+    return msg if msg.msg_id == 0 else copy.copy(msg)
 
 
 class Layer:
@@ -110,11 +122,13 @@ class Layer:
     @property
     def log(self) -> PrefixLogger:
         """A logger whose records name the robot and this layer."""
+        self.robot  # noqa: B018 - raises a clear error when not attached
         return self._log
 
     @property
     def counters(self) -> LayerCounters:
         """This layer's message counters."""
+        self.robot  # noqa: B018 - raises a clear error when not attached
         return self._counters
 
     def _attach(self, robot: Robot, level: Level, log: PrefixLogger) -> None:
@@ -136,14 +150,14 @@ class Layer:
             raise RobotStateError(f"{type(self).__name__} cannot send: {state}")
         return robot
 
-    # -- internal messages -----------------------------------------------------------
-
     def _stamp(self, robot: Robot, msg: Message, dst: Level) -> None:
         msg.msg_id = next(robot._ids)
         msg.robot_id = robot.robot_id
         msg.src_layer = self._level
         msg.dst_layer = dst
         msg.corr_id = 0
+
+    # -- internal messages -----------------------------------------------------------
 
     def send_up(self, msg: Message) -> None:
         """Sends an internal message to the layer directly above."""
@@ -152,6 +166,7 @@ class Layer:
         if above is None:
             robot._violation("no_layer_above", self, msg)
             return
+        msg = _owned(msg)
         self._stamp(robot, msg, self._level - 1)
         self._counters.sent_internal += 1
         above._inbox.put(msg)
@@ -163,28 +178,56 @@ class Layer:
         if below is None:
             robot._violation("no_layer_below", self, msg)
             return
+        msg = _owned(msg)
         self._stamp(robot, msg, self._level + 1)
         self._counters.sent_internal += 1
         below._inbox.put(msg)
 
     def send_to_layer(self, level: Level, msg: Message) -> None:
-        """Sends an internal message to any layer of this robot.
+        """Sends an internal message to any other layer of this robot.
 
-        Farther layers are reached through every intermediate layer, which forwards
-        the message without calling its own hooks.
+        A farther layer is reached through every intermediate layer, each of which
+        forwards it at once (and counts it) without calling its hooks.
         """
         robot = self._check_live()
-        if level == self._level or not 0 <= level < len(robot.layers):
-            robot._violation("to_self" if level == self._level else "no_such_layer", self, msg)
+        if not self._level_ok(robot, level, msg):
             return
+        msg = _owned(msg)
         self._stamp(robot, msg, level)
         self._counters.sent_internal += 1
-        self._toward(level)._inbox.put(msg)
+        self._carry(msg)
 
-    def _toward(self, level: Level) -> Layer:
-        neighbour = self._below if level > self._level else self._above
-        assert neighbour is not None  # level was checked against the stack
-        return neighbour
+    def _level_ok(self, robot: Robot, level: Level, msg: Message) -> bool:
+        """Whether ``level`` is another layer of this robot; if not, the drop is counted."""
+        if level == self._level:
+            robot._violation("to_self", self, msg)
+            return False
+        if not 0 <= level < len(robot.layers):
+            robot._violation("no_such_layer", self, msg)
+            return False
+        return True
+
+    def _carry(self, msg: Message) -> None:
+        """Takes a stamped internal message through the intermediate layers to its own.
+
+        Forwarding happens here, when the message is sent, rather than in each
+        intermediate layer's loop: a layer busy in a long hook (a Task layer waiting
+        for a motion) must not hold up messages passing between its neighbours.
+        """
+        dst = msg.dst_layer
+        layer = self
+        while True:
+            layer = layer._below if dst > layer._level else layer._above  # type: ignore[assignment]
+            if layer._level == dst:
+                break
+            layer._counters.forwarded += 1
+        if msg.corr_id:
+            outcome = layer._requests.take(msg)
+            if outcome is not _NOT_A_REPLY:
+                if outcome is _DELIVERED:
+                    layer._counters.received_internal += 1
+                return
+        layer._inbox.put(msg)
 
     # -- external messages -----------------------------------------------------------
 
@@ -204,6 +247,7 @@ class Layer:
             robot._violation("to_own_robot", self, msg)
             return
         # The header is stamped inline: this is the hot path of external traffic.
+        # No copy is needed: the message is encoded before send() returns.
         msg.msg_id = next(robot._ids)
         msg.robot_id = robot.robot_id
         msg.src_layer = msg.dst_layer = self._level
@@ -219,6 +263,7 @@ class Layer:
 
         Raises:
             UnknownRobotError: after sending to the others, when some robots are unknown.
+            ConfigurationError: the robot has no transport.
         """
         robot = self._check_live()
         self._stamp(robot, msg, self._level)
@@ -230,22 +275,27 @@ class Layer:
     def reply(self, request: Message, response: Message) -> None:
         """Answers a request: externally to its robot, or internally to its layer.
 
-        ``response.msg_type`` is kept (ACCEPT by default; set DENY to refuse).
+        ``response.msg_type`` is kept (ACCEPT by default; set DENY to refuse). The
+        request object itself may be sent back as the response.
         """
         robot = self._check_live()
-        if request.src_layer == request.dst_layer and request.robot_id != robot.robot_id:
+        asker, asked_id = request.robot_id, request.msg_id  # before any stamping
+        if request.src_layer == request.dst_layer and asker != robot.robot_id:
+            response = _owned(response)
             self._stamp(robot, response, self._level)
-            response.corr_id = request.msg_id
-            robot._send_external(request.robot_id, response)
+            response.corr_id = asked_id
+            robot._send_external(asker, response)
             self._counters.sent_external += 1
         else:
             self._reply_internal(robot, request, response)
 
     def _reply_internal(self, robot: Robot, request: Message, response: Message) -> None:
-        self._stamp(robot, response, request.src_layer)
-        response.corr_id = request.msg_id
+        asker_level, asked_id = request.src_layer, request.msg_id  # before any stamping
+        response = _owned(response)
+        self._stamp(robot, response, asker_level)
+        response.corr_id = asked_id
         self._counters.sent_internal += 1
-        self._toward(request.src_layer)._accept_internal(response)
+        self._carry(response)
 
     # -- requests --------------------------------------------------------------------
 
@@ -263,14 +313,16 @@ class Layer:
 
         Raises:
             RequestTimeout: no reply in time.
+            RuleViolation: ``robot_id`` is this robot (the drop is counted too).
+            RobotStateError: the robot stopped while waiting.
         """
         robot = self._check_live()
-        msg.msg_type = _NEGOTIATION
         if robot_id == robot.robot_id:
             robot._violation("to_own_robot", self, msg)
-            raise self._nobody_to_ask(f"robot {robot_id} is this robot")
+            raise RuleViolation(f"{self._log.prefix}request() to its own robot {robot_id}")
+        msg.msg_type = _NEGOTIATION
         self._stamp(robot, msg, self._level)
-        reply = self._expect(robot, msg, robot_id, timeout)
+        reply = self._expect(robot, msg, robot_id, True, timeout)
         try:
             robot._send_external(robot_id, msg)
             self._counters.sent_external += 1
@@ -294,48 +346,46 @@ class Layer:
         The reply comes from that layer's ``get_intra_msg_reply``.
 
         Raises:
-            RequestTimeout: no reply in time (also when the request broke a rule).
+            RequestTimeout: no reply in time.
+            RuleViolation: ``level`` is this layer's or outside the stack (counted too).
+            RobotStateError: the robot stopped while waiting.
         """
         robot = self._check_live()
+        if not self._level_ok(robot, level, msg):
+            raise RuleViolation(f"{self._log.prefix}no layer {level} to ask")
+        msg = _owned(msg)
         msg.msg_type = _NEGOTIATION
-        if level == self._level or not 0 <= level < len(robot.layers):
-            robot._violation("to_self" if level == self._level else "no_such_layer", self, msg)
-            raise self._nobody_to_ask(f"no layer {level} to ask")
         self._stamp(robot, msg, level)
-        reply = self._expect(robot, msg, None, timeout)
+        reply = self._expect(robot, msg, robot.robot_id, False, timeout)
         self._counters.sent_internal += 1
-        self._toward(level)._inbox.put(msg)
+        self._carry(msg)
         try:
             return await reply
         finally:
             self._requests.forget(msg.msg_id)
 
-    def _nobody_to_ask(self, why: str) -> RequestTimeout:
-        return RequestTimeout(
-            f"robot {self.robot_id} {type(self).__name__}(L{self._level}): {why}; "
-            "the request was dropped (see the drop counters)"
-        )
-
     def _expect(
-        self, robot: Robot, msg: Message, peer: RobotId | None, timeout: float | None
+        self,
+        robot: Robot,
+        msg: Message,
+        peer: RobotId,
+        external: bool,
+        timeout: float | None,
     ) -> asyncio.Future[Message]:
         seconds = self.default_request_timeout if timeout is None else timeout
-        return self._requests.expect(msg, peer, seconds, robot.clock.loop_deadline(seconds))
+        deadline = robot.clock.loop_deadline(seconds)
+        return self._requests.expect(msg, peer, external, seconds, deadline)
 
-    # -- delivery (called by neighbours and by the robot) ----------------------------
-
-    def _accept_internal(self, msg: Message) -> None:
-        """Takes an internal message; a reply for a waiting request skips the queue."""
-        if msg.corr_id and msg.dst_layer == self._level and self._requests.take(msg):
-            self._counters.received_internal += 1
-            return
-        self._inbox.put(msg)
+    # -- delivery from the robot -----------------------------------------------------
 
     def _accept_external(self, msg: Message) -> None:
         """Takes an external message from the robot (already checked for level)."""
-        if msg.corr_id and self._requests.take(msg):
-            self._counters.received_external += 1
-            return
+        if msg.corr_id:
+            outcome = self._requests.take(msg)
+            if outcome is not _NOT_A_REPLY:
+                if outcome is _DELIVERED:
+                    self._counters.received_external += 1
+                return
         if not self._inbox.offer(msg):
             self.robot._drop(
                 "queue_full", f"{type(self).__name__}(L{self._level}) inbox full, {msg!r}"
@@ -347,7 +397,6 @@ class Layer:
         """Thesis Fig. 10: inner process, then messages in batches, until stopped."""
         robot = self.robot
         inbox = self._inbox
-        level = self._level
         counters = self._counters
         has_inner = type(self).inner_process is not Layer.inner_process
         has_condition = self._has_termination_condition()
@@ -357,16 +406,9 @@ class Layer:
         while True:
             if not inbox:
                 await inbox.wait()
-            delivered = False
-            while inbox:
+            while inbox:  # every message here is for this layer: forwarding is done
                 msg = inbox.pop()
-                dst = msg.dst_layer
-                if dst != level:  # passing through on its way to a farther layer
-                    counters.forwarded += 1
-                    (self._below if dst > level else self._above)._accept_internal(msg)  # type: ignore[union-attr]
-                    continue
-                delivered = True
-                if msg.src_layer == dst:
+                if msg.src_layer == msg.dst_layer:
                     counters.received_external += 1
                     await self.handle_msg(msg)
                     continue
@@ -377,8 +419,7 @@ class Layer:
                         self._reply_internal(robot, msg, response)
                 else:
                     await self.store_intra_msg(msg)
-            if delivered:
-                if has_inner:
-                    await self.inner_process()
-                if has_condition:
-                    robot._layer_may_be_done(self)
+            if has_inner:
+                await self.inner_process()
+            if has_condition:
+                robot._layer_may_be_done(self)

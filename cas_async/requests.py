@@ -1,37 +1,65 @@
-"""The requests a layer is waiting on: correlation, deadlines, late replies.
+"""The requests a layer is waiting on: correlation, deadlines, late and stray replies.
 
 A request is a NEGOTIATION whose ``msg_id`` the reply carries back as ``corr_id``.
 Replies are matched here as they arrive, before the layer's inbox, so a layer
-blocked in one of its hooks on ``await request(...)`` still gets its answer.
+blocked in one of its hooks on ``await request(...)`` still gets its answer. A
+reply must come from where the request went: the asked robot for an external
+request (same level), this robot's own layers for an internal one. Anything else
+that claims to answer a request (a stray, late or repeated reply) is dropped and
+counted; it never reaches a hook or a waiting caller.
 """
 
 from __future__ import annotations
 
 import asyncio
+import enum
 from collections.abc import Callable
 from typing import Final
 
 from ._types import RobotId
 from .deadlines import Deadlines
-from .errors import RequestTimeout
+from .errors import RequestTimeout, RobotStateError
 from .message import Message
 
-__all__ = ["PendingRequests"]
+__all__ = ["PendingRequests", "ReplyOutcome"]
 
-_EXPIRED_MEMORY: Final = 1024
-"""Timed-out request ids remembered, so that their late replies are dropped."""
+_MEMORY: Final = 1024
+"""Timed-out and answered request ids remembered per layer, to drop late or repeated replies."""
+
+
+class ReplyOutcome(enum.Enum):
+    """What :meth:`PendingRequests.take` did with a message carrying a ``corr_id``."""
+
+    NOT_A_REPLY = 0
+    """No request of this layer waits for it: an ordinary message for the hooks."""
+    DELIVERED = 1
+    """It answered a waiting request."""
+    DROPPED = 2
+    """It claimed to answer a request but was late, repeated or from the wrong place."""
 
 
 class _Waiter:
-    __slots__ = ("future", "msg", "peer", "seconds")
+    __slots__ = ("external", "future", "peer", "seconds", "what")
 
     def __init__(
-        self, future: asyncio.Future[Message], msg: Message, peer: RobotId | None, seconds: float
+        self,
+        future: asyncio.Future[Message],
+        peer: RobotId,
+        external: bool,
+        seconds: float,
+        what: str,
     ) -> None:
         self.future = future
-        self.msg = msg
-        self.peer = peer  # the robot expected to answer an external request; None if internal
+        self.peer = peer  # the robot that must answer (this robot, for internal requests)
+        self.external = external
         self.seconds = seconds
+        self.what = what  # "robot 3 to Query #12", for the messages of errors and drops
+
+
+def _remember(ids: dict[int, None], msg_id: int) -> None:
+    ids[msg_id] = None
+    if len(ids) > _MEMORY:
+        del ids[next(iter(ids))]  # insertion order: the oldest goes first
 
 
 class PendingRequests:
@@ -42,26 +70,41 @@ class PendingRequests:
         drop: counts (and logs) a refused reply: ``drop(reason, detail)``.
     """
 
-    __slots__ = ("_deadlines", "_drop", "_expired", "_loop", "_owner", "_waiting")
+    __slots__ = ("_answered", "_deadlines", "_drop", "_expired", "_owner", "_waiting")
 
     def __init__(self, owner: str, drop: Callable[[str, str], None]) -> None:
         self._owner = owner
         self._drop = drop
         self._waiting: dict[int, _Waiter] = {}
-        self._expired: dict[int, None] = {}  # insertion-ordered set, oldest evicted first
-        self._loop: asyncio.AbstractEventLoop | None = None
+        self._expired: dict[int, None] = {}  # insertion-ordered sets of recent ids
+        self._answered: dict[int, None] = {}
         self._deadlines: Deadlines | None = None
 
     def expect(
-        self, msg: Message, peer: RobotId | None, seconds: float, deadline: float
+        self,
+        msg: Message,
+        peer: RobotId,
+        external: bool,
+        seconds: float,
+        deadline: float,
     ) -> asyncio.Future[Message]:
-        """Registers ``msg`` (already stamped) as waiting until loop time ``deadline``."""
+        """Registers ``msg`` (already stamped) as waiting until loop time ``deadline``.
+
+        Args:
+            msg: the request.
+            peer: the robot whose answer is expected (this robot for internal ones).
+            external: whether the answer must come from another robot's same level.
+            seconds: the timeout, for the error message.
+            deadline: when it expires, in event-loop time.
+        """
         deadlines = self._deadlines
         if deadlines is None:
-            self._loop = asyncio.get_running_loop()
-            deadlines = self._deadlines = Deadlines(self._loop, self._waiting, self._expire)
-        future: asyncio.Future[Message] = self._loop.create_future()  # type: ignore[union-attr]
-        self._waiting[msg.msg_id] = _Waiter(future, msg, peer, seconds)
+            loop = asyncio.get_running_loop()
+            deadlines = self._deadlines = Deadlines(loop, self._waiting, self._expire)
+        future: asyncio.Future[Message] = deadlines.loop.create_future()
+        whom = f"robot {peer}" if external else f"layer {msg.dst_layer}"
+        what = f"{whom} to {type(msg).__name__} #{msg.msg_id}"
+        self._waiting[msg.msg_id] = _Waiter(future, peer, external, seconds, what)
         deadlines.add(msg.msg_id, deadline)
         return future
 
@@ -69,44 +112,52 @@ class PendingRequests:
         """Stops waiting for ``msg_id`` (answered, timed out, cancelled or never sent)."""
         self._waiting.pop(msg_id, None)
 
-    def take(self, reply: Message) -> bool:
-        """Hands ``reply`` to the request it answers; True when it was consumed.
-
-        An answer to nobody's request is an ordinary message (False) unless it
-        answers a request that timed out, or comes from a robot that was not asked:
-        both are dropped and counted (True).
-        """
-        waiter = self._waiting.get(reply.corr_id)
+    def take(self, reply: Message) -> ReplyOutcome:
+        """Hands ``reply`` to the request it answers, if any; see :class:`ReplyOutcome`."""
+        corr_id = reply.corr_id
+        waiter = self._waiting.get(corr_id)
         if waiter is None:
-            if reply.corr_id in self._expired:
+            if corr_id in self._expired:
                 self._drop("late_reply", f"{reply!r} arrived after its request timed out")
-                return True
-            return False
-        if waiter.peer is not None and reply.robot_id != waiter.peer:
-            self._drop("reply_from_wrong_robot", f"{reply!r}, expected robot {waiter.peer}")
-            return True
-        if not waiter.future.done():
-            waiter.future.set_result(reply)
-        return True
+            elif corr_id in self._answered:
+                self._drop("duplicate_reply", f"{reply!r} answers a request already answered")
+            else:
+                return ReplyOutcome.NOT_A_REPLY
+            return ReplyOutcome.DROPPED
+        external = reply.src_layer == reply.dst_layer
+        if reply.robot_id != waiter.peer or external != waiter.external:
+            self._drop(
+                "reply_from_wrong_place",
+                f"{reply!r} claims to be the reply from {waiter.what}",
+            )
+            return ReplyOutcome.DROPPED
+        if waiter.future.done():
+            self._drop("duplicate_reply", f"{reply!r} answers a request already answered")
+            return ReplyOutcome.DROPPED
+        waiter.future.set_result(reply)
+        _remember(self._answered, corr_id)
+        return ReplyOutcome.DELIVERED
 
     def _expire(self, msg_id: int) -> None:
         waiter = self._waiting.get(msg_id)
         if waiter is None or waiter.future.done():
             return
-        expired = self._expired
-        expired[msg_id] = None
-        if len(expired) > _EXPIRED_MEMORY:
-            del expired[next(iter(expired))]
-        msg = waiter.msg
-        whom = f"layer {msg.dst_layer}" if waiter.peer is None else f"robot {waiter.peer}"
+        _remember(self._expired, msg_id)
         waiter.future.set_exception(
             RequestTimeout(
-                f"{self._owner}: no reply from {whom} to {type(msg).__name__} "
-                f"#{msg.msg_id} within {waiter.seconds:g} s"
+                f"{self._owner}: no reply from {waiter.what} within {waiter.seconds:g} s"
             )
         )
 
     def close(self) -> None:
-        """Disarms the deadline timer (the robot stopped)."""
+        """The robot stopped: disarms the timer and fails every request still waiting."""
         if self._deadlines is not None:
             self._deadlines.cancel()
+        for waiter in self._waiting.values():
+            if not waiter.future.done():
+                waiter.future.set_exception(
+                    RobotStateError(
+                        f"{self._owner}: stopped while waiting for the reply from {waiter.what}"
+                    )
+                )
+        self._waiting.clear()

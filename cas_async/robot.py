@@ -22,12 +22,12 @@ import enum
 import itertools
 from collections.abc import Iterable, Sequence
 from types import TracebackType
-from typing import final
+from typing import Final, final
 
 from ._types import Address, RobotId
 from .channel import DEFAULT_EXTERNAL_LIMIT
 from .clock import Clock, ScaledClock
-from .codec import DEFAULT_MAX_DATAGRAM, Codec
+from .codec import DEFAULT_MAX_DATAGRAM, MIN_DATAGRAM, Codec
 from .counters import LayerCounters
 from .errors import (
     ConfigurationError,
@@ -42,8 +42,12 @@ from .layer import Layer
 from .logs import DropLog, logger_for
 from .message import Message, specs_for
 from .transport.base import Endpoint, Transport
+from .transport.unconnected import Unconnected
 
 __all__ = ["Robot", "RobotState"]
+
+_MISMATCHES_EXPLAINED: Final = 16
+"""Foreign stacks whose first datagram is explained in the log; the rest are counted."""
 
 
 class RobotState(enum.Enum):
@@ -55,31 +59,6 @@ class RobotState(enum.Enum):
 
     def __str__(self) -> str:
         return self.value
-
-
-class _NoTransport(Endpoint):
-    """The endpoint of a robot created without a transport: sending says so."""
-
-    max_datagram_size = DEFAULT_MAX_DATAGRAM
-
-    def __init__(self, robot_id: RobotId) -> None:
-        self.robot_id = robot_id
-
-    @property
-    def address(self) -> Address:
-        return None
-
-    def send(self, robot_id: RobotId, data: bytes) -> None:
-        raise ConfigurationError(
-            f"robot {self.robot_id} has no transport: pass transport=... to Robot to "
-            "send to other robots"
-        )
-
-    def peers(self) -> Iterable[RobotId]:
-        return ()
-
-    def close(self) -> None:
-        pass
 
 
 @final
@@ -117,6 +96,11 @@ class Robot:
         self.layers: tuple[Layer, ...] = tuple(layers)
         if not self.layers:
             raise ConfigurationError(f"robot {robot_id}: a robot needs at least one layer")
+        if max_datagram_size < MIN_DATAGRAM or queue_limit < 1:
+            raise ConfigurationError(
+                f"robot {robot_id}: max_datagram_size must be at least {MIN_DATAGRAM} bytes "
+                f"and queue_limit at least 1 (got {max_datagram_size}, {queue_limit})"
+            )
         self.transport = transport
         self.clock: Clock = clock if clock is not None else ScaledClock(1.0)
         self.queue_limit = queue_limit
@@ -127,7 +111,7 @@ class Robot:
         self._drops = DropLog(self._log)
         self._mismatches_seen: set[int] = set()
         self._state = RobotState.CREATED
-        self._endpoint: Endpoint = _NoTransport(robot_id)
+        self._endpoint: Endpoint = Unconnected(robot_id)
         self._codec: Codec | None = None
         self._supervisor: asyncio.Task[None] | None = None
         self._finished: asyncio.Future[None] | None = None
@@ -225,15 +209,18 @@ class Robot:
             )
         specs = specs_for(self._messages)
         fingerprint = stack_fingerprint(len(self.layers), specs)
-        limit = self._max_datagram_size
         if self.transport is not None:
             self._endpoint = await self.transport.open(self.robot_id, self)
-            limit = min(limit, self._endpoint.max_datagram_size)
-        self._codec = Codec(specs, fingerprint, limit)
+        limit = min(self._max_datagram_size, self._endpoint.max_datagram_size)
+        try:
+            self._codec = Codec(specs, fingerprint, limit)
+        except BaseException:
+            self._close()  # the socket must not outlive a robot that never started
+            raise
 
     def _start(self) -> None:
         """Second half of starting: starts the clock and one task per layer."""
-        loop = self._loop = asyncio.get_running_loop()
+        loop = asyncio.get_running_loop()
         self.clock.start()
         self._finished = loop.create_future()
         self._stop_requested = asyncio.Event()
@@ -257,6 +244,18 @@ class Robot:
         """
         if self._state is not RobotState.RUNNING:
             return
+        try:
+            await self._halt()
+        finally:
+            self._close()
+        self._raise_unreported(exc)
+
+    async def _halt(self) -> None:
+        """Stops the layer tasks and waits for them; the endpoint stays open.
+
+        A :class:`~cas_async.swarm.Swarm` halts every robot before closing any, so
+        no robot still running sends to one that is gone.
+        """
         self.stop()
         supervisor = self._supervisor
         assert supervisor is not None
@@ -267,14 +266,20 @@ class Robot:
             supervisor.cancel()
             await asyncio.wait([supervisor])
             raise
-        finally:
-            self._close()
+
+    def _raise_unreported(self, exc: BaseException | None) -> None:
+        """Raises a layer failure that ``run()`` did not raise; notes it on ``exc`` if any."""
         error = self._error()
-        if error is not None and not self._error_reported and exc is None:
-            self._error_reported = True
+        if error is None or self._error_reported:
+            return
+        self._error_reported = True
+        if exc is None:
             raise error
+        exc.add_note(f"meanwhile {error}")  # the body's own exception goes on
 
     def _close(self) -> None:
+        if self._state is RobotState.STOPPED:
+            return
         for layer in self.layers:
             layer._live = False
             layer._requests.close()
@@ -307,8 +312,14 @@ class Robot:
     async def _run_layer(self, layer: Layer) -> None:
         try:
             await layer._run()
-        except asyncio.CancelledError:
-            raise
+        except asyncio.CancelledError as exc:
+            task = asyncio.current_task()
+            if task is not None and task.cancelling():
+                raise  # the robot is stopping (or a sibling failed)
+            # Nobody cancelled this task: an await inside the layer was cancelled (say,
+            # a driver's future). The layer is dead; the robot must not run on without it.
+            layer.log.error("failed: an await was cancelled from outside the robot")
+            raise LayerError(self.robot_id, layer._level, type(layer).__name__, exc) from exc
         except Exception as exc:
             layer.log.error("failed: %s: %s", type(exc).__name__, exc)
             raise LayerError(self.robot_id, layer._level, type(layer).__name__, exc) from exc
@@ -433,16 +444,19 @@ class Robot:
         self._drops.drop(f"transport.{reason}", detail)
 
     def _refuse_stack(self, exc: StackMismatchError) -> None:
-        first = exc.theirs not in self._mismatches_seen
-        self._drops.drop("stack_mismatch", str(exc), log=False)
-        if first:
+        # Explained once per foreign stack, for the first few stacks only: random
+        # datagrams carry random fingerprints and must not fill the log or memory.
+        seen = self._mismatches_seen
+        explain = exc.theirs not in seen and len(seen) < _MISMATCHES_EXPLAINED
+        self._drops.drop("stack_mismatch", str(exc), log=not explain)
+        if explain:
             self._mismatches_seen.add(exc.theirs)
             self._log.error(
                 "refusing datagrams from robot %s: its stack (%s) differs from ours (%s). "
                 "Robots that exchange messages must run identical stacks: the same number of "
                 "layers and the same registered messages (import the same message modules, or "
                 "pass the same messages=[...] to every Robot). "
-                "Further mismatches are only counted.",
+                "Further mismatches are counted and logged sparsely.",
                 exc.sender,
                 describe_fingerprint(exc.theirs),
                 describe_fingerprint(exc.ours),

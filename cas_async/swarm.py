@@ -77,15 +77,31 @@ class Swarm:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        """Stops every robot; raises the first failure not already raised by ``run()``."""
+        """Stops every robot, then closes every endpoint (the mirror of starting).
+
+        No robot is closed while another still runs, so none sends to a robot that
+        is gone. Raises the first layer failure that ``run()`` did not raise; the
+        others are attached to it as notes.
+        """
+        running = [robot for robot in self if robot.state is RobotState.RUNNING]
+        for robot in running:
+            robot.stop()
+        try:
+            await asyncio.gather(*(robot._halt() for robot in running))
+        finally:
+            for robot in running:
+                robot._close()
         errors: list[BaseException] = []
-        for robot in self:
+        for robot in running:
             try:
-                await robot.__aexit__(exc_type, exc, tb)
+                robot._raise_unreported(exc)
             except LayerError as error:
                 errors.append(error)
-        if errors and exc is None:
-            raise errors[0]
+        if errors:
+            first, *others = errors
+            for other in others:
+                first.add_note(f"also {other}")
+            raise first
 
     async def run(self) -> None:
         """Waits until every robot's ``run()`` returns.

@@ -105,7 +105,7 @@ async def test_reply_from_another_robot_is_refused(start_robot) -> None:
     (question,) = b[0].external
     c[0].reply(question, Answer(666, 0))  # robot 3 answers a question put to robot 2
     await settle()
-    assert robot_a.dropped == {"reply_from_wrong_robot": 1}
+    assert robot_a.dropped == {"reply_from_wrong_place": 1}
     assert not asking.done()
     b[0].reply(question, Answer(2, 0))
     assert (await asking).value == 2
