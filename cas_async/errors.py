@@ -11,6 +11,8 @@ Hierarchy::
     ├── DecodeError               (also ValueError) bytes are not a valid datagram
     │   └── StackMismatchError    valid bytes from a robot with a different stack
     ├── RuleViolation             (also ValueError) a request broke a rule of the model
+    ├── SimulationError           (also ValueError) a simulation input is not valid
+    │                             (defined in cas_async.sim.errors)
     ├── RequestTimeout            (also TimeoutError) no reply in time
     └── LayerError                a layer raised; the original is ``__cause__``
 

@@ -43,6 +43,7 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "MIN_DATAGRAM",
         "ReplyOutcome",
         "Unconnected",
+        "SegmentTable",
         "PendingRequests",
         "Deadlines",
         "undispatchable",

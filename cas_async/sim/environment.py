@@ -1,0 +1,235 @@
+"""The Environment: the simulated world every robot of a simulation moves in.
+
+The thesis (§5.4) adds an Environment class, reachable only from the robotic
+layer, that holds the robots' locations and simulates their sensors; it is "a
+simple class accessible from a robotic layer" rather than a layer. Here it is
+the same plain class, with time passed in rather than read: it knows each
+robot's current :class:`~cas_async.sim.kinematics.Motion` and when it started,
+so the pose of a moving robot is exact at any simulated instant, not only at
+the end of a move. Range queries evaluate every robot at once with numpy.
+
+Application layers never touch it: a robotic layer reaches it through a
+:class:`~cas_async.sim.middleware.SimulatedMiddleware`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Final
+
+import numpy as np
+import numpy.typing as npt
+
+from .._types import RobotId
+from ..errors import ConfigurationError, UnknownRobotError
+from .errors import SimulationError
+from .kinematics import Motion
+from .pose import Pose
+from .positions import Positions
+from .segments import SegmentTable
+
+__all__ = ["Environment"]
+
+# How far a motion's start may be from where the robot is, relative to the
+# coordinates' magnitude: rounding, not teleporting.
+_START_TOLERANCE: Final = 1e-9
+
+
+@dataclass(slots=True)
+class _Robot:
+    """One robot's entry: its current motion, since when, and its row in the table."""
+
+    index: int
+    mobile: bool
+    motion: Motion
+    since: float
+
+
+class Environment:
+    """Poses and motions of every simulated robot, exact at any simulated instant.
+
+    Robots keep the order in which they were added; query results that cover all
+    robots follow it. Only the current motion of each robot is kept: asking about
+    an instant before it started reports the pose it started from.
+    """
+
+    def __init__(self) -> None:
+        self._robots: dict[RobotId, _Robot] = {}
+        self._table = SegmentTable()
+        self._ids: npt.NDArray[np.int64] | None = None  # rebuilt after membership changes
+        # positions_at() is cached for the latest instant: in a simulation many
+        # robots query the same instant, and any change of motion clears it.
+        self._cache: tuple[float, Positions] | None = None
+
+    # -- membership -------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return len(self._robots)
+
+    def __contains__(self, robot_id: object) -> bool:
+        return robot_id in self._robots
+
+    def __repr__(self) -> str:
+        return f"Environment(robots={len(self._robots)})"
+
+    @property
+    def robot_ids(self) -> tuple[RobotId, ...]:
+        """Every robot's id, in the order they were added."""
+        return tuple(self._robots)
+
+    def add_robot(self, robot_id: RobotId, pose: Pose, *, mobile: bool = True) -> None:
+        """Places a new robot, standing at ``pose``.
+
+        Args:
+            robot_id: unique among this environment's robots.
+            pose: where it stands.
+            mobile: ``False`` for a robot that can never move or turn.
+
+        Raises:
+            ConfigurationError: ``robot_id`` is already present.
+        """
+        if robot_id in self._robots:
+            raise ConfigurationError(f"robot {robot_id} is already in the environment")
+        motion = Motion.standing(pose)
+        self._robots[robot_id] = _Robot(len(self._robots), mobile, motion, -math.inf)
+        self._table.append(-math.inf, motion)
+        self._ids = self._cache = None
+
+    def remove_robot(self, robot_id: RobotId) -> None:
+        """Takes a robot out of the environment (it no longer appears in queries).
+
+        Raises:
+            UnknownRobotError: no such robot.
+        """
+        gone = self._robot(robot_id)
+        del self._robots[robot_id]
+        self._table.delete(gone.index)
+        for robot in self._robots.values():
+            if robot.index > gone.index:
+                robot.index -= 1
+        self._ids = self._cache = None
+
+    def is_mobile(self, robot_id: RobotId) -> bool:
+        """Whether the robot can move (see :meth:`add_robot`)."""
+        return self._robot(robot_id).mobile
+
+    def _robot(self, robot_id: RobotId) -> _Robot:
+        try:
+            return self._robots[robot_id]
+        except KeyError:
+            raise UnknownRobotError(f"robot {robot_id} is not in the environment") from None
+
+    # -- motion -------------------------------------------------------------------------
+
+    def start_motion(self, robot_id: RobotId, motion: Motion, start_time: float) -> None:
+        """Makes ``motion`` the robot's current motion, beginning at ``start_time``.
+
+        It replaces whatever the robot was doing, so ``motion.start`` must be where
+        the robot is at ``start_time`` (plan it from :meth:`pose_at`).
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: the robot is immobile and the motion would change its
+                pose; ``start_time`` is not finite or precedes the current motion's
+                start; or ``motion`` does not start where the robot is.
+        """
+        robot = self._robot(robot_id)
+        if not math.isfinite(start_time):
+            raise SimulationError(f"start_time must be finite, got {start_time!r}")
+        if start_time < robot.since:
+            raise SimulationError(
+                f"robot {robot_id}: a motion cannot start at {start_time!r}, before its "
+                f"current one (started at {robot.since!r}): time does not go backwards"
+            )
+        if not robot.mobile and motion.end != motion.start:
+            raise SimulationError(f"robot {robot_id} is immobile: it cannot move or turn")
+        here = robot.motion.pose_at(start_time - robot.since)
+        scale = _START_TOLERANCE * max(1.0, abs(here.x), abs(here.y))
+        if abs(motion.start.x - here.x) > scale or abs(motion.start.y - here.y) > scale:
+            raise SimulationError(
+                f"robot {robot_id} is at ({here.x!r}, {here.y!r}) at {start_time!r}, but "
+                f"the motion starts at ({motion.start.x!r}, {motion.start.y!r})"
+            )
+        robot.motion, robot.since = motion, start_time
+        self._table.set(robot.index, start_time, motion)
+        self._cache = None
+
+    def halt(self, robot_id: RobotId, t: float) -> Pose:
+        """Stops the robot where it is at ``t``; it stands there from ``t`` on.
+
+        Halting at or after the end of a motion leaves the robot exactly at its end
+        pose. Returns the pose it stopped at.
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: ``t`` is not finite or precedes the current motion's start.
+        """
+        pose = self.pose_at(robot_id, t)
+        self.start_motion(robot_id, Motion.standing(pose), t)
+        return pose
+
+    def motion_of(self, robot_id: RobotId) -> tuple[Motion, float]:
+        """The robot's current motion and the instant it started (``-inf``: always)."""
+        robot = self._robot(robot_id)
+        return robot.motion, robot.since
+
+    # -- queries --------------------------------------------------------------------------
+
+    def pose_at(self, robot_id: RobotId, t: float) -> Pose:
+        """The robot's exact pose at simulated instant ``t``.
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: ``t`` is NaN.
+        """
+        robot = self._robot(robot_id)
+        if math.isnan(t):
+            raise SimulationError("t must be a number, got nan")
+        return robot.motion.pose_at(t - robot.since)
+
+    def positions_at(self, t: float) -> Positions:
+        """Every robot's position at simulated instant ``t``, in the order they were added.
+
+        Raises:
+            SimulationError: ``t`` is NaN.
+        """
+        if math.isnan(t):
+            raise SimulationError("t must be a number, got nan")
+        cached = self._cache
+        if cached is not None and cached[0] == t:
+            return cached[1]
+        if self._ids is None:
+            # dicts keep insertion order, which is also the table's row order
+            self._ids = np.fromiter(self._robots, dtype=np.int64, count=len(self._robots))
+            self._ids.flags.writeable = False
+        xy = self._table.positions(t)
+        xy.flags.writeable = False
+        result = Positions(self._ids, xy)
+        self._cache = (t, result)
+        return result
+
+    def within(self, robot_id: RobotId, radius: float, t: float) -> Positions:
+        """The other robots within ``radius`` (inclusive) of ``robot_id`` at instant ``t``.
+
+        Results are nearest first, ties broken by id. One vectorised pass over all
+        robots: O(n) per query, no pairwise matrix.
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: ``radius`` is negative or NaN (``inf`` means everyone),
+                or ``t`` is NaN.
+        """
+        index = self._robot(robot_id).index
+        if not radius >= 0:
+            raise SimulationError(f"radius must be >= 0, got {radius!r}")
+        everyone = self.positions_at(t)
+        offsets = everyone.xy - everyone.xy[index]
+        squared = np.einsum("ij,ij->i", offsets, offsets)
+        inside = squared <= radius * radius
+        inside[index] = False
+        found = np.flatnonzero(inside)
+        order = found[np.lexsort((everyone.ids[found], squared[found]))]
+        ids, xy = everyone.ids[order], everyone.xy[order]
+        ids.flags.writeable = xy.flags.writeable = False
+        return Positions(ids, xy)

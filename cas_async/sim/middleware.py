@@ -1,0 +1,221 @@
+"""The middleware: what a robotic layer asks of its robot, simulated or real.
+
+The thesis puts a (pseudo-)middleware between the robotic layers and the robot
+(§3.1, Fig. 27): in operation it drives hardware, in simulation it computes
+kinematics and consults the Environment. :class:`Middleware` is that seam. A
+robotic layer holds one and calls ``move_to``, ``rotate_to``, ``pose`` and
+``robots_within``; :class:`SimulatedMiddleware` implements them with
+closed-form kinematics, an :class:`~cas_async.sim.environment.Environment` and
+the robot's clock, and a hardware implementation plugs in at the same place
+without changing any layer.
+
+The speed profile is how an application shapes motion without the middleware
+knowing why: fatigue, for instance, is ``speed_profile = Decelerating(...)``
+when a load is picked up and ``speed_profile = ConstantSpeed(...)`` when it is
+handed over. The profile ages with the time spent translating, so its state
+carries across moves until it is replaced.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from abc import ABC, abstractmethod
+from typing import final
+
+from .._types import RobotId
+from ..clock import Clock
+from ..errors import RobotStateError, UnknownRobotError
+from .environment import Environment
+from .errors import SimulationError
+from .kinematics import Motion, check_turn_rate
+from .phases import check_phases
+from .pose import Pose
+from .positions import Positions
+from .profiles import SpeedProfile
+
+__all__ = ["Middleware", "SimulatedMiddleware"]
+
+
+class Middleware(ABC):
+    """One robot's motion and perception, as a robotic layer sees them.
+
+    Moves are exclusive: a second move or rotation while one is under way raises
+    :class:`~cas_async.errors.RobotStateError`. Cancelling a move stops the robot
+    where it is at that instant and re-raises the cancellation.
+    """
+
+    @property
+    @abstractmethod
+    def robot_id(self) -> RobotId:
+        """The robot this middleware drives."""
+
+    @property
+    @abstractmethod
+    def speed_profile(self) -> SpeedProfile:
+        """The profile the next translation follows (aged by past translations)."""
+
+    @speed_profile.setter
+    @abstractmethod
+    def speed_profile(self, profile: SpeedProfile) -> None:
+        """Replaces the profile; a move under way keeps the one it started with."""
+
+    @abstractmethod
+    def pose(self) -> Pose:
+        """The robot's pose now (during a move too)."""
+
+    @abstractmethod
+    async def move_to(self, x: float, y: float) -> Pose:
+        """Turns to face ``(x, y)``, drives there, and returns the pose reached."""
+
+    @abstractmethod
+    async def rotate_to(self, heading: float) -> Pose:
+        """Turns in place to ``heading`` (radians, see :mod:`.pose`), returns the pose."""
+
+    @abstractmethod
+    async def robots_within(self, radius: float) -> Positions:
+        """The other robots within ``radius`` now, nearest first."""
+
+
+@final
+class SimulatedMiddleware(Middleware):
+    """Moves a robot of an :class:`Environment` in simulated time.
+
+    Each action plans a closed-form :class:`Motion` from the robot's pose at
+    ``clock.now()``, registers it in the Environment, and sleeps until
+    ``start + duration`` on the clock: an absolute deadline, so rounding does not
+    accumulate over a sequence of moves. Works on scaled real time and on
+    virtual time alike.
+
+    Args:
+        environment: the world the robot is in.
+        robot_id: the robot, already added to ``environment``.
+        clock: the robot's clock (the layer's ``self.clock``).
+        turn_rate: radians per second for rotations (``inf``: instant).
+        speed_profile: the profile of the first translation.
+
+    Raises:
+        UnknownRobotError: ``robot_id`` is not in ``environment``.
+        SimulationError: ``turn_rate`` is not positive, or the profile is invalid.
+    """
+
+    def __init__(
+        self,
+        environment: Environment,
+        robot_id: RobotId,
+        clock: Clock,
+        *,
+        turn_rate: float,
+        speed_profile: SpeedProfile,
+    ) -> None:
+        environment.is_mobile(robot_id)  # raises UnknownRobotError early
+        self._environment = environment
+        self._robot_id = robot_id
+        self._clock = clock
+        self._turn_rate = check_turn_rate(turn_rate)
+        self.speed_profile = speed_profile
+        self._busy = False
+        # The instant the last action settled. A timer may wake a hair before its
+        # deadline; the next action must still not start before the last one ended.
+        self._settled = -math.inf
+
+    @property
+    def robot_id(self) -> RobotId:
+        """The robot this middleware drives."""
+        return self._robot_id
+
+    @property
+    def turn_rate(self) -> float:
+        """Radians per second of every rotation."""
+        return self._turn_rate
+
+    @property
+    def speed_profile(self) -> SpeedProfile:
+        """The profile the next translation follows (aged by past translations)."""
+        return self._profile
+
+    @speed_profile.setter
+    def speed_profile(self, profile: SpeedProfile) -> None:
+        if not isinstance(profile, SpeedProfile):
+            raise SimulationError(f"speed_profile must be a SpeedProfile, got {profile!r}")
+        check_phases(profile.phases())
+        self._profile = profile
+
+    def pose(self) -> Pose:
+        """The robot's exact pose at ``clock.now()``."""
+        return self._environment.pose_at(self._robot_id, self._clock.now())
+
+    def _start_time(self) -> float:
+        return max(self._clock.now(), self._settled)
+
+    async def move_to(self, x: float, y: float) -> Pose:
+        """Turns to face ``(x, y)``, drives there under the speed profile, returns the end pose.
+
+        Raises:
+            SimulationError: the target is not finite, or the robot is immobile
+                and the target is not where it stands.
+            RobotStateError: another move of this robot is under way.
+        """
+        start = self._start_time()
+        here = self._environment.pose_at(self._robot_id, start)
+        motion = Motion.straight_to(here, x, y, turn_rate=self._turn_rate, profile=self._profile)
+        return await self._perform(motion, start)
+
+    async def rotate_to(self, heading: float) -> Pose:
+        """Turns in place, the short way round, to ``heading``; returns the end pose.
+
+        Raises:
+            SimulationError: ``heading`` is not finite, or the robot is immobile.
+            RobotStateError: another move of this robot is under way.
+        """
+        start = self._start_time()
+        here = self._environment.pose_at(self._robot_id, start)
+        motion = Motion.turn_to(here, heading, turn_rate=self._turn_rate)
+        return await self._perform(motion, start)
+
+    async def robots_within(self, radius: float) -> Positions:
+        """The other robots within ``radius`` (inclusive) at ``clock.now()``, nearest first."""
+        return self._environment.within(self._robot_id, radius, self._clock.now())
+
+    async def _perform(self, motion: Motion, start: float) -> Pose:
+        if self._busy:
+            raise RobotStateError(
+                f"robot {self._robot_id} is already moving: await or cancel that move first"
+            )
+        self._environment.start_motion(self._robot_id, motion, start)
+        self._busy = True
+        end = start + motion.duration
+        profile = self._profile
+        try:
+            await self._clock.sleep_until(end)
+        except BaseException:
+            # Cancelled (or interrupted) mid-move: the robot stops where it is now.
+            # A robot taken out of the environment meanwhile has nothing to stop, and
+            # that must not replace the cancellation being re-raised.
+            with contextlib.suppress(UnknownRobotError):
+                stop = min(max(self._clock.now(), start), end)
+                self._settle(stop)
+                self._age(profile, motion.translating_time(stop - start))
+            raise
+        finally:
+            self._busy = False
+        # Settle at the planned end instant, not at now(): the pose is then exactly
+        # the motion's end, whatever the timer's rounding or lateness.
+        self._settle(end)
+        self._age(profile, motion.translation_time)
+        return motion.end
+
+    def _settle(self, t: float) -> None:
+        self._environment.halt(self._robot_id, t)
+        self._settled = t
+
+    def _age(self, used: SpeedProfile, translating: float) -> None:
+        # If the application replaced the profile during the move, its choice wins.
+        if self._profile is used and translating > 0:
+            self._profile = used.advanced(translating)
+
+    def __repr__(self) -> str:
+        return (
+            f"SimulatedMiddleware(robot_id={self._robot_id}, turn_rate={self._turn_rate:g}, "
+            f"speed_profile={self._profile!r})"
+        )
