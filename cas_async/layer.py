@@ -71,7 +71,11 @@ class Layer:
     # -- hooks ---------------------------------------------------------------------
 
     async def inner_process(self) -> None:
-        """The layer's own work: at start and after each batch of delivered messages."""
+        """The layer's own work: at start and after each batch of delivered messages.
+
+        Return promptly: this layer's messages wait while it runs (replies to its
+        own requests and messages passing through it do not).
+        """
 
     async def handle_msg(self, msg: Message) -> None:
         """An external message from the same level of another robot."""

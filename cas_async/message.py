@@ -111,8 +111,7 @@ def _same_class(a: type, b: type) -> bool:
 
 
 def _register(cls: type[Message], name: str | None, type_id: int | None) -> MessageSpec:
-    if not (isinstance(cls, type) and issubclass(cls, Message)) or cls is Message:
-        raise MessageDefinitionError(f"@message needs a subclass of Message, got {cls!r}")
+    """Registers a class that ``message()`` has checked and made a dataclass."""
     name = name or cls.__name__
     tid = _type_id_for(name) if type_id is None else type_id
     if type(tid) is not int or not 0 <= tid <= _MAX_TYPE_ID:
