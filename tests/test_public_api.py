@@ -43,6 +43,7 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "MIN_DATAGRAM",
         "ReplyOutcome",
         "Unconnected",
+        "drop_socket_error",
         "SegmentTable",
         "PendingRequests",
         "Deadlines",

@@ -17,7 +17,7 @@ from typing import Protocol
 
 from .._types import Address, RobotId
 
-__all__ = ["DatagramSink", "Endpoint", "Transport"]
+__all__ = ["DatagramSink", "Endpoint", "Transport", "drop_socket_error"]
 
 
 class DatagramSink(Protocol):
@@ -28,6 +28,15 @@ class DatagramSink(Protocol):
 
     def transport_dropped(self, reason: str, detail: str) -> None:
         """Called when the transport lost or refused something (counted by reason)."""
+
+
+def drop_socket_error(sink: DatagramSink, exc: Exception) -> None:
+    """Counts a datagram lost to a socket error (counted as ``transport.socket_error``).
+
+    A peer the socket cannot reach is a lost datagram, as UDP allows; it must not
+    end the layer that sent it.
+    """
+    sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
 
 
 class Endpoint(ABC):

@@ -24,7 +24,7 @@ from typing import Any, Final, Protocol, final
 
 from .._types import Address, RobotId
 from ..errors import ConfigurationError, RobotStateError, UnknownRobotError
-from .base import DatagramSink, Endpoint, Transport
+from .base import DatagramSink, Endpoint, Transport, drop_socket_error
 from .udp_socket import SocketWire
 
 __all__ = ["MAX_UDP_PAYLOAD", "UdpDirectory", "UdpTransport"]
@@ -116,7 +116,7 @@ class _Protocol(asyncio.DatagramProtocol):
 
     def error_received(self, exc: Exception) -> None:
         # ICMP errors (e.g. port unreachable after a peer stopped) land here.
-        self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+        drop_socket_error(self._sink, exc)
 
 
 @final
@@ -176,7 +176,7 @@ class UdpEndpoint(Endpoint):
             # uvloop raises where the stdlib socket raises OSError (counted by SocketWire):
             # an IPv6 peer seen from an IPv4 socket or the reverse. A peer the socket cannot
             # reach is a lost datagram, not a reason to end the sending layer.
-            self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+            drop_socket_error(self._sink, exc)
 
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._addresses if rid != self.robot_id]

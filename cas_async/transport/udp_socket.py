@@ -22,7 +22,7 @@ import socket
 from collections import deque
 from typing import Any, Final
 
-from .base import DatagramSink
+from .base import DatagramSink, drop_socket_error
 
 __all__ = ["SocketWire"]
 
@@ -69,7 +69,7 @@ class SocketWire:
             except (BlockingIOError, InterruptedError):
                 return
             except OSError as exc:  # e.g. ICMP port unreachable reported on the socket
-                sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+                drop_socket_error(sink, exc)
                 return
             sink.datagram_received(data)
 
@@ -87,7 +87,7 @@ class SocketWire:
             except (BlockingIOError, InterruptedError):
                 self._loop.add_writer(self._sock.fileno(), self._write_ready)
             except OSError as exc:
-                self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+                drop_socket_error(self._sink, exc)
                 return
         elif len(backlog) >= MAX_BACKLOG:
             self._sink.transport_dropped(
@@ -107,7 +107,7 @@ class SocketWire:
             except (BlockingIOError, InterruptedError):
                 return
             except OSError as exc:
-                self._sink.transport_dropped("socket_error", f"{type(exc).__name__}: {exc}")
+                drop_socket_error(self._sink, exc)
             backlog.popleft()
         self._loop.remove_writer(self._sock.fileno())
 
