@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field
+from typing import Any
 
 __all__ = ["LayerCounters"]
+
+_TOTALS = ("sent_internal", "sent_external", "received_internal", "received_external", "forwarded")
 
 
 @dataclass(slots=True)
@@ -21,7 +24,11 @@ class LayerCounters:
     """External messages delivered to this layer's hooks (or to a waiting request)."""
     forwarded: int = 0
     """Internal messages passed through this layer to a farther one."""
+    internal_by_type: dict[type[Any], int] = field(default_factory=dict)
+    """``sent_internal`` split by message class."""
+    external_by_type: dict[type[Any], int] = field(default_factory=dict)
+    """``sent_external`` split by message class."""
 
     def as_dict(self) -> dict[str, int]:
-        """The counters by name."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        """The totals by name (the per-class splits are not included)."""
+        return {name: getattr(self, name) for name in _TOTALS}

@@ -172,7 +172,10 @@ class Layer:
             return
         msg = _owned(msg)
         self._stamp(robot, msg, self._level - 1)
-        self._counters.sent_internal += 1
+        counters = self._counters
+        counters.sent_internal += 1
+        by_type = counters.internal_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
         above._inbox.put(msg)
 
     def send_down(self, msg: Message) -> None:
@@ -184,7 +187,10 @@ class Layer:
             return
         msg = _owned(msg)
         self._stamp(robot, msg, self._level + 1)
-        self._counters.sent_internal += 1
+        counters = self._counters
+        counters.sent_internal += 1
+        by_type = counters.internal_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
         below._inbox.put(msg)
 
     def send_to_layer(self, level: Level, msg: Message) -> None:
@@ -198,7 +204,10 @@ class Layer:
             return
         msg = _owned(msg)
         self._stamp(robot, msg, level)
-        self._counters.sent_internal += 1
+        counters = self._counters
+        counters.sent_internal += 1
+        by_type = counters.internal_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
         self._carry(msg)
 
     def _level_ok(self, robot: Robot, level: Level, msg: Message) -> bool:
@@ -257,7 +266,10 @@ class Layer:
         msg.src_layer = msg.dst_layer = self._level
         msg.corr_id = 0
         robot._endpoint.send(robot_id, robot._codec.encode(msg))  # type: ignore[union-attr]
-        self._counters.sent_external += 1
+        counters = self._counters
+        counters.sent_external += 1
+        by_type = counters.external_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
 
     def broadcast(self, msg: Message, robots: Iterable[RobotId] | None = None) -> None:
         """Sends one external message to the same level of several robots.
@@ -272,7 +284,10 @@ class Layer:
         robot = self._check_live()
         self._stamp(robot, msg, self._level)
         sent, unknown = robot._broadcast(msg, robots)
-        self._counters.sent_external += sent
+        counters = self._counters
+        counters.sent_external += sent
+        by_type = counters.external_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + sent
         if unknown:
             raise UnknownRobotError(f"robot {robot.robot_id}: no address for robots {unknown}")
 
@@ -289,7 +304,10 @@ class Layer:
             self._stamp(robot, response, self._level)
             response.corr_id = asked_id
             robot._send_external(asker, response)
-            self._counters.sent_external += 1
+            counters = self._counters
+            counters.sent_external += 1
+            by_type = counters.external_by_type
+            by_type[response.__class__] = by_type.get(response.__class__, 0) + 1
         else:
             self._reply_internal(robot, request, response)
 
@@ -298,7 +316,10 @@ class Layer:
         response = _owned(response)
         self._stamp(robot, response, asker_level)
         response.corr_id = asked_id
-        self._counters.sent_internal += 1
+        counters = self._counters
+        counters.sent_internal += 1
+        by_type = counters.internal_by_type
+        by_type[response.__class__] = by_type.get(response.__class__, 0) + 1
         self._carry(response)
 
     # -- requests --------------------------------------------------------------------
@@ -329,7 +350,10 @@ class Layer:
         reply = self._expect(robot, msg, robot_id, True, timeout)
         try:
             robot._send_external(robot_id, msg)
-            self._counters.sent_external += 1
+            counters = self._counters
+            counters.sent_external += 1
+            by_type = counters.external_by_type
+            by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
             return await reply
         finally:
             self._requests.forget(msg.msg_id)
@@ -361,7 +385,10 @@ class Layer:
         msg.msg_type = _NEGOTIATION
         self._stamp(robot, msg, level)
         reply = self._expect(robot, msg, robot.robot_id, False, timeout)
-        self._counters.sent_internal += 1
+        counters = self._counters
+        counters.sent_internal += 1
+        by_type = counters.internal_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
         self._carry(msg)
         try:
             return await reply

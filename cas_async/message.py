@@ -25,7 +25,7 @@ import inspect
 import typing
 import zlib
 from collections.abc import Callable, Iterable, Iterator
-from typing import Any, Final, TypeVar, overload
+from typing import Any, Final, TypeVar, dataclass_transform, overload
 
 from .errors import DecodeError, MessageDefinitionError
 from .schema import FieldType, field_type, nested_message_hook
@@ -149,6 +149,7 @@ def message(cls: type[M], /) -> type[M]: ...
 def message(
     *, name: str | None = None, type_id: int | None = None
 ) -> Callable[[type[M]], type[M]]: ...
+@dataclass_transform()  # type checkers then see each message's generated __init__
 def message(
     cls: type[M] | None = None, /, *, name: str | None = None, type_id: int | None = None
 ) -> type[M] | Callable[[type[M]], type[M]]:

@@ -173,6 +173,23 @@ class Robot:
         counts.update({f"dropped.{reason}": n for reason, n in sorted(self._drops.counts.items())})
         return counts
 
+    def message_counts(self) -> dict[str, dict[str, int]]:
+        """Messages this robot's layers sent, by class name, internal and external.
+
+        Returns ``{"internal": {name: n}, "external": {name: n}}``. Forwarding is not
+        counted again; a broadcast counts once per recipient.
+        """
+        internal: dict[str, int] = {}
+        external: dict[str, int] = {}
+        for layer in self.layers:
+            for split, into in (
+                (layer.counters.internal_by_type, internal),
+                (layer.counters.external_by_type, external),
+            ):
+                for cls, n in split.items():
+                    into[cls.__name__] = into.get(cls.__name__, 0) + n
+        return {"internal": internal, "external": external}
+
     def __repr__(self) -> str:
         names = ", ".join(type(layer).__name__ for layer in self.layers)
         return f"Robot({self.robot_id}, [{names}], {self._state})"

@@ -56,6 +56,16 @@ class Swarm:
                 total[name] = total.get(name, 0) + value
         return total
 
+    def message_counts(self) -> dict[str, dict[str, int]]:
+        """Every robot's :meth:`Robot.message_counts`, summed by class name."""
+        total: dict[str, dict[str, int]] = {"internal": {}, "external": {}}
+        for robot in self:
+            for kind, counts in robot.message_counts().items():
+                into = total[kind]
+                for name, n in counts.items():
+                    into[name] = into.get(name, 0) + n
+        return total
+
     async def __aenter__(self) -> Swarm:
         """Opens every robot's endpoint, then starts every robot's layers."""
         opened: list[Robot] = []
