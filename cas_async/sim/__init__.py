@@ -4,6 +4,8 @@
   robot that rotates in place and drives straight under a pluggable speed profile.
 * :mod:`.environment`: every simulated robot's motion, exact at any instant,
   with vectorised range queries.
+* :mod:`.items`: items robots carry, and a ledger that checks none is lost or
+  duplicated.
 * :mod:`.middleware`: the seam between robotic layers and the robot, with its
   simulated implementation.
 
@@ -13,6 +15,7 @@ application decides when to change them.
 
 from .environment import Environment
 from .errors import SimulationError
+from .items import ItemEvent, ItemEventKind, ItemId, ItemLedger
 from .kinematics import Motion, check_turn_rate
 from .middleware import Middleware, SimulatedMiddleware
 from .phases import Phase, check_phases
@@ -24,6 +27,10 @@ __all__ = [
     "ConstantSpeed",
     "Decelerating",
     "Environment",
+    "ItemEvent",
+    "ItemEventKind",
+    "ItemId",
+    "ItemLedger",
     "Middleware",
     "Motion",
     "Phase",

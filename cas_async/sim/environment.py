@@ -6,7 +6,10 @@ simple class accessible from a robotic layer" rather than a layer. Here it is
 the same plain class, with time passed in rather than read: it knows each
 robot's current :class:`~cas_async.sim.kinematics.Motion` and when it started,
 so the pose of a moving robot is exact at any simulated instant, not only at
-the end of a move. Range queries evaluate every robot at once with numpy.
+the end of a move. Range queries evaluate every robot at once with numpy. It
+also keeps each robot's odometer and the :class:`~cas_async.sim.items.ItemLedger`
+of the items robots carry: hand-overs happen only between robots within reach
+of each other, and a robot holding items cannot leave.
 
 Application layers never touch it: a robotic layer reaches it through a
 :class:`~cas_async.sim.middleware.SimulatedMiddleware`.
@@ -24,6 +27,7 @@ import numpy.typing as npt
 from .._types import RobotId
 from ..errors import ConfigurationError, UnknownRobotError
 from .errors import SimulationError
+from .items import ItemId, ItemLedger
 from .kinematics import Motion
 from .pose import Pose
 from .positions import Positions
@@ -44,6 +48,15 @@ class _Robot:
     mobile: bool
     motion: Motion
     since: float
+    odometer: float = 0.0  # distance translated by the motions before the current one
+
+    def travelled(self, t: float) -> float:
+        """Total distance translated up to instant ``t``."""
+        # A standing motion (the only kind that starts at -inf) translates nothing;
+        # skipping it also avoids evaluating inf - inf.
+        if self.motion.length == 0:
+            return self.odometer
+        return self.odometer + self.motion.travelled(t - self.since)
 
 
 class Environment:
@@ -51,11 +64,12 @@ class Environment:
 
     Robots keep the order in which they were added; query results that cover all
     robots follow it. Only the current motion of each robot is kept: asking about
-    an instant before it started reports the pose it started from.
+    an instant before it started reports the pose (and odometer) it started from.
     """
 
     def __init__(self) -> None:
         self._robots: dict[RobotId, _Robot] = {}
+        self._items = ItemLedger()
         self._table = SegmentTable()
         self._ids: npt.NDArray[np.int64] | None = None  # rebuilt after membership changes
         # positions_at() is cached for the latest instant: in a simulation many
@@ -72,6 +86,16 @@ class Environment:
 
     def __repr__(self) -> str:
         return f"Environment(robots={len(self._robots)})"
+
+    @property
+    def items(self) -> ItemLedger:
+        """The ledger of the items robots hold.
+
+        Change it through :meth:`create_item`, :meth:`hand_over` and
+        :meth:`retire_item`, which check the robots; read it, or subscribe to it,
+        directly.
+        """
+        return self._items
 
     @property
     def robot_ids(self) -> tuple[RobotId, ...]:
@@ -101,8 +125,15 @@ class Environment:
 
         Raises:
             UnknownRobotError: no such robot.
+            SimulationError: the robot holds items, which would be lost with it.
         """
         gone = self._robot(robot_id)
+        held = self._items.held_by(robot_id)
+        if held:
+            raise SimulationError(
+                f"robot {robot_id} holds items {list(held)}: hand them over or retire "
+                "them before removing it, or they would be lost"
+            )
         del self._robots[robot_id]
         self._table.delete(gone.index)
         for robot in self._robots.values():
@@ -151,6 +182,7 @@ class Environment:
                 f"robot {robot_id} is at ({here.x!r}, {here.y!r}) at {start_time!r}, but "
                 f"the motion starts at ({motion.start.x!r}, {motion.start.y!r})"
             )
+        robot.odometer = robot.travelled(start_time)
         robot.motion, robot.since = motion, start_time
         self._table.set(robot.index, start_time, motion)
         self._cache = None
@@ -233,3 +265,84 @@ class Environment:
         ids, xy = everyone.ids[order], everyone.xy[order]
         ids.flags.writeable = xy.flags.writeable = False
         return Positions(ids, xy)
+
+    # -- odometry -------------------------------------------------------------------------
+
+    def distance_travelled(self, robot_id: RobotId, t: float) -> float:
+        """Total distance the robot translated up to instant ``t`` (rotations add nothing).
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: ``t`` is NaN.
+        """
+        robot = self._robot(robot_id)
+        if math.isnan(t):
+            raise SimulationError("t must be a number, got nan")
+        return robot.travelled(t)
+
+    def distances(self, t: float) -> dict[RobotId, float]:
+        """Every robot's :meth:`distance_travelled` up to ``t``, in the order they were added.
+
+        Raises:
+            SimulationError: ``t`` is NaN.
+        """
+        if math.isnan(t):
+            raise SimulationError("t must be a number, got nan")
+        return {robot_id: robot.travelled(t) for robot_id, robot in self._robots.items()}
+
+    # -- items --------------------------------------------------------------------------
+
+    def create_item(self, robot_id: RobotId, t: float) -> ItemId:
+        """Creates an item in the robot's hands at instant ``t`` and returns its id.
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: ``t`` is not finite.
+        """
+        self._robot(robot_id)
+        return self._items.create(robot_id, t)
+
+    def hand_over(
+        self, item: ItemId, giver: RobotId, receiver: RobotId, t: float, *, reach: float
+    ) -> None:
+        """Hands ``item`` from ``giver`` to ``receiver`` at instant ``t``, atomically.
+
+        Args:
+            item: an item ``giver`` holds.
+            giver: the robot handing it over.
+            receiver: another robot, within ``reach`` of ``giver`` at ``t``.
+            t: the simulated instant of the hand-over.
+            reach: the largest distance between the two robots' positions at which
+                the hand-over may happen (inclusive).
+
+        Raises:
+            UnknownRobotError: either robot is not in the environment.
+            SimulationError: ``reach`` is negative or NaN, ``t`` is not finite, the robots
+                are farther apart than ``reach``, or the ledger refuses the transfer
+                (see :meth:`ItemLedger.transfer`). Nothing changes then.
+        """
+        self._robot(giver)
+        self._robot(receiver)
+        if not reach >= 0:
+            raise SimulationError(f"reach must be >= 0, got {reach!r}")
+        if not math.isfinite(t):  # before evaluating positions at it
+            raise SimulationError(f"a hand-over's t must be a finite number, got {t!r}")
+        here, there = self.pose_at(giver, t), self.pose_at(receiver, t)
+        distance = math.hypot(there.x - here.x, there.y - here.y)
+        if distance > reach:
+            raise SimulationError(
+                f"robot {giver} at ({here.x!r}, {here.y!r}) cannot hand item {item} to "
+                f"robot {receiver} at ({there.x!r}, {there.y!r}) at {t!r}: they are "
+                f"{distance!r} apart, beyond the reach of {reach!r}"
+            )
+        self._items.transfer(item, giver, receiver, t)
+
+    def retire_item(self, item: ItemId, robot_id: RobotId, t: float) -> None:
+        """Retires ``item``, held by the robot, at instant ``t``.
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: see :meth:`ItemLedger.retire`.
+        """
+        self._robot(robot_id)
+        self._items.retire(item, robot_id, t)

@@ -4,7 +4,8 @@ The thesis puts a (pseudo-)middleware between the robotic layers and the robot
 (§3.1, Fig. 27): in operation it drives hardware, in simulation it computes
 kinematics and consults the Environment. :class:`Middleware` is that seam. A
 robotic layer holds one and calls ``move_to``, ``rotate_to``, ``pose`` and
-``robots_within``; :class:`SimulatedMiddleware` implements them with
+``robots_within``, and carries items with ``items``, ``create_item``,
+``hand_over`` and ``retire_item``; :class:`SimulatedMiddleware` implements them with
 closed-form kinematics, an :class:`~cas_async.sim.environment.Environment` and
 the robot's clock, and a hardware implementation plugs in at the same place
 without changing any layer.
@@ -28,6 +29,7 @@ from ..clock import Clock
 from ..errors import RobotStateError, UnknownRobotError
 from .environment import Environment
 from .errors import SimulationError
+from .items import ItemId
 from .kinematics import Motion, check_turn_rate
 from .phases import check_phases
 from .pose import Pose
@@ -43,6 +45,10 @@ class Middleware(ABC):
     Moves are exclusive: a second move or rotation while one is under way raises
     :class:`~cas_async.errors.RobotStateError`. Cancelling a move stops the robot
     where it is at that instant and re-raises the cancellation.
+
+    The item methods are instantaneous and may be called during a move: a
+    gripper that needs time to grasp or release is waited for by the robotic
+    layer, on its own clock, around the call.
     """
 
     @property
@@ -76,6 +82,27 @@ class Middleware(ABC):
     async def robots_within(self, radius: float) -> Positions:
         """The other robots within ``radius`` now, nearest first."""
 
+    @abstractmethod
+    def items(self) -> tuple[ItemId, ...]:
+        """The items the robot holds now, in the order it received them."""
+
+    @abstractmethod
+    def create_item(self) -> ItemId:
+        """Creates an item in the robot's hands now and returns its id."""
+
+    @abstractmethod
+    def hand_over(self, item: ItemId, receiver: RobotId) -> None:
+        """Gives ``item``, held by this robot, to robot ``receiver``, now.
+
+        This is the one atomic moment an item changes hands: before the call
+        this robot holds it, after a successful call ``receiver`` does, and a
+        failed call leaves it where it was. The robots must be within reach.
+        """
+
+    @abstractmethod
+    def retire_item(self, item: ItemId) -> None:
+        """Retires ``item``, held by this robot, now: nobody holds it any more."""
+
 
 @final
 class SimulatedMiddleware(Middleware):
@@ -93,10 +120,13 @@ class SimulatedMiddleware(Middleware):
         clock: the robot's clock (the layer's ``self.clock``).
         turn_rate: radians per second for rotations (``inf``: instant).
         speed_profile: the profile of the first translation.
+        reach: the largest distance from this robot at which it can hand an item
+            over (the default allows only robots at the same spot, up to rounding).
 
     Raises:
         UnknownRobotError: ``robot_id`` is not in ``environment``.
-        SimulationError: ``turn_rate`` is not positive, or the profile is invalid.
+        SimulationError: ``turn_rate`` is not positive, the profile is invalid,
+            or ``reach`` is negative or not finite.
     """
 
     def __init__(
@@ -107,12 +137,16 @@ class SimulatedMiddleware(Middleware):
         *,
         turn_rate: float,
         speed_profile: SpeedProfile,
+        reach: float = 1e-6,
     ) -> None:
         environment.is_mobile(robot_id)  # raises UnknownRobotError early
+        if not (math.isfinite(reach) and reach >= 0):
+            raise SimulationError(f"reach must be a finite number >= 0, got {reach!r}")
         self._environment = environment
         self._robot_id = robot_id
         self._clock = clock
         self._turn_rate = check_turn_rate(turn_rate)
+        self._reach = float(reach)
         self.speed_profile = speed_profile
         self._busy = False
         # The instant the last action settled. A timer may wake a hair before its
@@ -128,6 +162,11 @@ class SimulatedMiddleware(Middleware):
     def turn_rate(self) -> float:
         """Radians per second of every rotation."""
         return self._turn_rate
+
+    @property
+    def reach(self) -> float:
+        """The largest distance at which this robot hands an item over."""
+        return self._reach
 
     @property
     def speed_profile(self) -> SpeedProfile:
@@ -177,6 +216,36 @@ class SimulatedMiddleware(Middleware):
         """The other robots within ``radius`` (inclusive) at ``clock.now()``, nearest first."""
         return self._environment.within(self._robot_id, radius, self._clock.now())
 
+    def items(self) -> tuple[ItemId, ...]:
+        """The items the robot holds now, in the order it received them."""
+        return self._environment.items.held_by(self._robot_id)
+
+    def create_item(self) -> ItemId:
+        """Creates an item in the robot's hands at ``clock.now()`` and returns its id."""
+        return self._environment.create_item(self._robot_id, self._clock.now())
+
+    def hand_over(self, item: ItemId, receiver: RobotId) -> None:
+        """Gives ``item`` to ``receiver`` at ``clock.now()``: the one moment it changes hands.
+
+        Allowed during a move too: the positions are exact at that instant.
+
+        Raises:
+            UnknownRobotError: ``receiver`` is not in the environment.
+            SimulationError: the robots are farther apart than :attr:`reach`, this
+                robot does not hold ``item``, or ``receiver`` is this robot.
+        """
+        self._environment.hand_over(
+            item, self._robot_id, receiver, self._clock.now(), reach=self._reach
+        )
+
+    def retire_item(self, item: ItemId) -> None:
+        """Retires ``item`` at ``clock.now()``.
+
+        Raises:
+            SimulationError: this robot does not hold ``item``.
+        """
+        self._environment.retire_item(item, self._robot_id, self._clock.now())
+
     async def _perform(self, motion: Motion, start: float) -> Pose:
         if self._busy:
             raise RobotStateError(
@@ -217,5 +286,5 @@ class SimulatedMiddleware(Middleware):
     def __repr__(self) -> str:
         return (
             f"SimulatedMiddleware(robot_id={self._robot_id}, turn_rate={self._turn_rate:g}, "
-            f"speed_profile={self._profile!r})"
+            f"reach={self._reach:g}, speed_profile={self._profile!r})"
         )
