@@ -1,0 +1,1 @@
+"""Applications built on cas_async's public API."""
