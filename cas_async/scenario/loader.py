@@ -1,0 +1,350 @@
+"""A scenario file end to end: read, override, import the app, validate, check.
+
+A scenario is a TOML file::
+
+    app = "apps.fire_brigade"   # import path: "package.module" or "package.module:attr"
+
+    [run]                       # optional: how to run it (RunConfig)
+    seed = 7
+    virtual = true
+
+    [world]                     # required: the area (WorldConfig)
+    width = 200.0
+    height = 100.0
+
+    [robots]                    # every other key belongs to the application
+    count = 40
+
+A file may start from another one: ``extends = "base.toml"`` (a path relative to
+the file) reads the base first, then this file's keys on top of it, table by
+table (arrays and values are replaced, not merged). Variants of a scenario are
+then a few lines each.
+
+:func:`load_scenario` reads it, applies ``--set key=value`` overrides, imports
+the application, validates ``[run]``, ``[world]`` and the application's keys
+(into ``app.config_type``, see :mod:`~cas_async.scenario.config`), then lets
+the application check what needs several keys at once. Every problem found is
+reported in one :class:`~cas_async.scenario.config.ScenarioError` naming the file.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import importlib
+import importlib.util
+import os
+import re
+import sys
+import tomllib
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, Literal, cast
+
+from .app import SimulationApp
+from .config import ScenarioError, _show, from_toml, setting
+
+__all__ = [
+    "RunConfig",
+    "Scenario",
+    "WorldConfig",
+    "apply_overrides",
+    "load_scenario",
+    "parse_override",
+]
+
+_RESERVED: Final = frozenset({"app", "run", "world"})
+_MISSING: Final = object()
+_APP_MEMBERS: Final = ("name", "item_name", "config_type", "check", "build")
+_IMPORT_PATH: Final = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?")
+_APP_EXPECTED: Final = 'an import path such as "package.module" or "package.module:attr"'
+
+
+@dataclass(frozen=True, slots=True)
+class RunConfig:
+    """How a scenario runs: the optional ``[run]`` table.
+
+    Attributes:
+        seed: seed of the run's random generator; the same seed replays the same run.
+        virtual: run on virtual time (as fast as the CPU allows) instead of
+            scaled real time.
+        time_factor: with real time, simulated seconds per wall second.
+        transport: ``"udp"`` (real sockets on localhost) or ``"memory"`` (in process).
+        max_time: simulated seconds after which the run gives up (timed out).
+        trace_interval: simulated seconds between two samples of robot positions.
+        progress_interval: wall seconds between two plain progress lines.
+    """
+
+    seed: int = setting(0, ge=0, doc="seed of the run's random generator")
+    virtual: bool = setting(False, doc="virtual time instead of scaled real time")
+    time_factor: float = setting(50.0, gt=0, doc="simulated seconds per wall second")
+    transport: Literal["udp", "memory"] = setting("udp", doc="how robots exchange messages")
+    max_time: float = setting(3600.0, gt=0, doc="simulated seconds before the run gives up")
+    trace_interval: float = setting(1.0, gt=0, doc="simulated seconds between position samples")
+    progress_interval: float = setting(1.0, gt=0, doc="wall seconds between progress lines")
+
+
+@dataclass(frozen=True, slots=True)
+class WorldConfig:
+    """The area robots live in: the required ``[world]`` table, corner at ``(0, 0)``.
+
+    Attributes:
+        width: extent along x, in distance units.
+        height: extent along y, in distance units.
+    """
+
+    width: float = setting(gt=0, doc="extent along x, distance units")
+    height: float = setting(gt=0, doc="extent along y, distance units")
+
+
+@dataclass(frozen=True, slots=True)
+class Scenario:
+    """A loaded, valid scenario.
+
+    Attributes:
+        path: the scenario file.
+        app_path: the application's import path, as written in the file.
+        app: the application.
+        run: the ``[run]`` table.
+        world: the ``[world]`` table.
+        config: the application's keys, an instance of ``app.config_type``.
+        data: the file's TOML data after overrides (plain dicts and lists),
+            to record with the results.
+    """
+
+    path: Path
+    app_path: str
+    app: SimulationApp
+    run: RunConfig
+    world: WorldConfig
+    config: Any
+    data: dict[str, Any]
+
+
+def load_scenario(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> Scenario:
+    """Reads, overrides, imports, validates and checks a scenario file.
+
+    Args:
+        path: the TOML file.
+        overrides: ``"key=value"`` texts, as given to ``--set`` (see :func:`parse_override`),
+            applied in order.
+
+    Raises:
+        ScenarioError: with ``file`` set to ``path`` as given: the file cannot be
+            read or is not TOML, an override is malformed, ``app`` cannot be
+            imported, keys are invalid (all of them reported), or the
+            application's ``check`` refused the configuration.
+    """
+    file = os.fspath(path)
+    try:
+        data = apply_overrides(_read_extended(Path(file)), [parse_override(t) for t in overrides])
+        return _validate(Path(file), data)
+    except ScenarioError as error:
+        located = error.with_file(file).with_traceback(error.__traceback__)
+        raise located from error.__cause__
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Splits ``"robots.speed=3"`` into ``("robots.speed", 3)``.
+
+    The value is read as a TOML value (``3``, ``2.5``, ``true``, ``"text"``,
+    ``[1, 2]``); anything that is not one is kept as text, so
+    ``strategy.name=random`` needs no quotes.
+
+    Raises:
+        ScenarioError: on key ``--set``: no ``=``, or an empty key or key part.
+    """
+    key, equals, value = text.partition("=")
+    parts = [part.strip() for part in key.split(".")]
+    if not equals or not all(parts):
+        raise ScenarioError([("--set", f"expected KEY=VALUE such as robots.speed=3, got {text!r}")])
+    return ".".join(parts), _parse_value(value)
+
+
+def _parse_value(text: str) -> Any:
+    try:
+        parsed = tomllib.loads(f"v = {text}")
+    except tomllib.TOMLDecodeError:
+        return text.strip()
+    # A value with a line break could smuggle in more keys: take it as text.
+    return parsed["v"] if parsed.keys() == {"v"} else text.strip()
+
+
+def apply_overrides(
+    data: Mapping[str, Any], overrides: Iterable[tuple[str, Any]]
+) -> dict[str, Any]:
+    """A deep copy of ``data`` with each dotted key set to its value, in order.
+
+    Tables on the way that do not exist are created.
+
+    Raises:
+        ScenarioError: on key ``--set``, for each override that would go
+            through a value that is not a table (``run.seed.x`` when ``seed`` is 7).
+    """
+    result = copy.deepcopy(dict(data))
+    problems = []
+    for key, value in overrides:
+        *path, last = key.split(".")
+        table = result
+        for depth, part in enumerate(path, start=1):
+            table = table.setdefault(part, {})
+            if not isinstance(table, dict):
+                where = ".".join(path[:depth])
+                problems.append(
+                    (
+                        "--set",
+                        f"cannot set {key}={_show(value)}: {where} is {_show(table)}, not a table",
+                    )
+                )
+                break
+        else:
+            table[last] = copy.deepcopy(value)
+    if problems:
+        raise ScenarioError(problems)
+    return result
+
+
+def _read(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise ScenarioError([("", "no such file")]) from None
+    except OSError as error:
+        raise ScenarioError([("", f"cannot read the file: {error.strerror or error}")]) from None
+    except UnicodeDecodeError as error:
+        raise ScenarioError([("", f"not UTF-8 text (byte {error.start})")]) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:  # its message gives the line and column
+        raise ScenarioError([("", f"not valid TOML: {error}")]) from None
+
+
+def _read_extended(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """The file's data on top of the file it ``extends`` (recursively)."""
+    data = _read(path) if not seen else _read_base(path)
+    base = data.pop("extends", None)
+    if base is None:
+        return data
+    if not isinstance(base, str) or not base:
+        raise ScenarioError([("extends", f"expected a path to a TOML file, got {_show(base)}")])
+    base_path = path.parent / base
+    chain = (*seen, path)
+    if base_path.resolve() in {p.resolve() for p in chain}:
+        names = " -> ".join(p.name for p in (*chain, base_path))
+        raise ScenarioError([("extends", f"files extend each other in a loop: {names}")])
+    return _merged(_read_extended(base_path, chain), data)
+
+
+def _read_base(path: Path) -> dict[str, Any]:
+    try:
+        return _read(path)
+    except ScenarioError as error:  # the error names the extending file: say which base
+        raise ScenarioError([("extends", f"{path}: {p}") for _, p in error.problems]) from None
+
+
+def _merged(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in top.items():
+        below = merged.get(key)
+        if isinstance(below, dict) and isinstance(value, dict):
+            merged[key] = _merged(below, value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def _validate(path: Path, data: dict[str, Any]) -> Scenario:
+    problems: list[tuple[str, str]] = []
+    app_path, app = _import_app(data.get("app"), problems, path)
+    run = _section(RunConfig, data.get("run", {}), "run", problems)
+    world = _section(WorldConfig, data.get("world", {}), "world", problems)
+    config = None
+    if app is not None:
+        config = _section(app.config_type, data, "", problems, others=_RESERVED)
+    if run is not None and run.virtual and run.transport == "udp":
+        problems.append(
+            (
+                "run.transport",
+                'virtual time needs the memory transport: set transport = "memory", '
+                "or run on scaled real time (virtual = false)",
+            )
+        )
+    if problems or app is None or run is None or world is None:
+        raise ScenarioError(problems)
+    app.check(config, (world.width, world.height))
+    return Scenario(path, app_path, app, run, world, config, data)
+
+
+def _section(
+    cls: type[Any],
+    data: Any,
+    key: str,
+    problems: list[tuple[str, str]],
+    others: frozenset[str] = frozenset(),
+) -> Any:
+    """``cls`` read from ``data``, or ``None`` with its problems added to ``problems``."""
+    try:
+        return from_toml(cls, data, key=key, others=others)
+    except ScenarioError as error:
+        problems.extend(error.problems)
+        return None
+
+
+def _importable_from(path: Path, module_name: str) -> None:
+    """Lets an app that ships next to its scenarios be imported from any directory.
+
+    When ``module_name``'s top package is not importable, the nearest directory
+    above the scenario file that holds it is put on ``sys.path`` (the app of a
+    repository's ``apps/x/scenarios/y.toml`` is found whatever the working directory).
+    """
+    top = module_name.split(".")[0]
+    if importlib.util.find_spec(top) is not None:
+        return
+    for folder in path.resolve().parents:
+        if (folder / top / "__init__.py").is_file() or (folder / f"{top}.py").is_file():
+            sys.path.append(str(folder))
+            return
+
+
+def _import_app(
+    spec: object, problems: list[tuple[str, str]], path: Path
+) -> tuple[str, SimulationApp | None]:
+    """The application ``spec`` names, or ``None`` with the reason added to ``problems``."""
+    if spec is None:
+        problems.append(("app", f"missing required key (expected {_APP_EXPECTED})"))
+        return "", None
+    if not isinstance(spec, str) or not _IMPORT_PATH.fullmatch(spec):
+        problems.append(("app", f"expected {_APP_EXPECTED}, got {_show(spec)}"))
+        return "", None
+    module_name, _, attribute = spec.partition(":")
+    attribute = attribute or "app"
+    _importable_from(path, module_name)
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as error:
+        problems.append(("app", f"cannot import {_show(module_name)}: {error}"))
+        return spec, None
+    app: Any = getattr(module, attribute, _MISSING)
+    if app is _MISSING:
+        problems.append(("app", f"module {_show(module_name)} has no attribute {attribute!r}"))
+        return spec, None
+    lacking = [member for member in _APP_MEMBERS if not hasattr(app, member)]
+    if lacking:
+        problems.append(
+            ("app", f"{_show(spec)} is not a simulation app: it has no {', '.join(lacking)}")
+        )
+        return spec, None
+    config_type = app.config_type
+    if not (isinstance(config_type, type) and dataclasses.is_dataclass(config_type)):
+        problems.append(
+            ("app", f"{_show(spec)}: config_type must be a dataclass, got {config_type!r}")
+        )
+        return spec, None
+    clashes = sorted(_RESERVED.intersection(f.name for f in dataclasses.fields(config_type)))
+    if clashes:
+        problems.append(
+            ("app", f"{_show(spec)}: config_type may not have keys {', '.join(clashes)}")
+        )
+        return spec, None
+    return spec, cast(SimulationApp, app)
