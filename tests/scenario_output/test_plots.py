@@ -1,0 +1,141 @@
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cas_async
+from cas_async.scenario.plots import _at_times, _spread, write_plots
+from cas_async.scenario.trace import Trace
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+NAMES = ["initial_positions.png", "snapshots_by_exchange.png", "snapshots_by_time.png"]
+GROUPS = {"Generator": [1], "Transporter": [2, 3, 4, 5, 6], "Sink": [7]}
+
+
+def walking_trace(samples: int, exchanges: int, duration: float = 80.0) -> Trace:
+    """Robots 1..8 (8 in no group) drifting right; exchange snapshots between the samples."""
+    trace = Trace(range(1, 9))
+    start = np.column_stack([np.linspace(5, 40, 8), np.linspace(5, 45, 8)])
+    events = [(t, "sample") for t in np.linspace(0, duration, samples).tolist()]
+    events += [(t, "exchange") for t in np.linspace(1, duration - 1, exchanges).tolist()]
+    count = 0
+    for t, kind in sorted(events):
+        xy = start + np.array([t * 0.2, 0.0])
+        if kind == "sample":
+            trace.sample(t, xy)
+        else:
+            count += 1
+            trace.exchange(t, count, xy)
+    return trace
+
+
+def assert_png(path: Path) -> None:
+    import matplotlib.image
+
+    assert path.read_bytes()[:8] == PNG_MAGIC
+    assert path.stat().st_size < 1_000_000
+    height, width = matplotlib.image.imread(path).shape[:2]
+    assert height > 0
+    assert width > 0
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    out_dir = tmp_path_factory.mktemp("plots") / "run" / "figures"  # created by write_plots
+    # 12 exchanges fill six panels; 4 samples fill only four (the rest is left blank)
+    return write_plots(
+        walking_trace(samples=4, exchanges=12), GROUPS, (60.0, 50.0), out_dir, title="Test, seed 1"
+    )
+
+
+def test_three_pngs_are_written(written: list[Path]) -> None:
+    assert [path.name for path in written] == NAMES
+    for path in written:
+        assert_png(path)
+
+
+def test_without_records_each_figure_is_a_note(tmp_path: Path) -> None:
+    written = write_plots(Trace([1, 2]), {}, (10.0, 10.0), tmp_path, title="empty")
+    assert [path.name for path in written] == NAMES
+    for path in written:
+        assert_png(path)
+
+
+@pytest.mark.parametrize(
+    ("available", "expected"),
+    [
+        pytest.param(0, [], id="none"),
+        pytest.param(1, [0], id="one"),
+        pytest.param(4, [0, 1, 2, 3], id="fewer-than-six-all"),
+        pytest.param(6, [0, 1, 2, 3, 4, 5], id="six"),
+        pytest.param(11, [0, 2, 4, 6, 8, 10], id="eleven-even"),
+        pytest.param(100, [0, 20, 40, 59, 79, 99], id="first-to-last"),
+    ],
+)
+def test_exchange_panels_spread_from_first_to_last(available: int, expected: list[int]) -> None:
+    assert _spread(available, 6) == expected
+
+
+@pytest.mark.parametrize(
+    ("times", "expected"),
+    [
+        pytest.param([], [], id="none"),
+        pytest.param([0.0], [0], id="one"),
+        pytest.param([0.0, 1.0, 2.0, 3.0, 4.0, 5.0], [0, 1, 2, 3, 4, 5], id="exact"),
+        pytest.param([0.0, 1.0, 10.0], [0, 1, 2], id="gap-takes-earlier"),
+        pytest.param([float(t) for t in range(101)], [0, 20, 40, 60, 80, 100], id="spread"),
+    ],
+)
+def test_time_panels_take_the_last_sample_at_or_before(
+    times: list[float], expected: list[int]
+) -> None:
+    assert _at_times(np.array(times, dtype=np.float64), 6) == expected
+
+
+def module_level_imports(tree: ast.Module) -> Iterator[str]:
+    """Modules imported when the file is imported: outside functions and ``if TYPE_CHECKING``."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda):
+            continue
+        if isinstance(node, ast.Import):
+            yield from (alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            yield node.module
+
+
+class _TopLevel(ast.NodeTransformer):
+    """Drops function bodies and ``if TYPE_CHECKING:`` blocks, which do not run on import."""
+
+    def visit_FunctionDef(self, node: ast.FunctionDef) -> None:
+        return None
+
+    def visit_AsyncFunctionDef(self, node: ast.AsyncFunctionDef) -> None:
+        return None
+
+    def visit_If(self, node: ast.If) -> ast.AST | None:
+        if isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            return None
+        return self.generic_visit(node)
+
+
+def test_no_cas_async_module_imports_matplotlib_on_import() -> None:
+    """So ``import cas_async`` (or any of its modules) never pays for matplotlib.
+
+    Checked on the source rather than in a fresh interpreter, which would cost
+    more than every plot test together.
+    """
+    package = Path(cas_async.__file__).parent
+    offenders = [
+        f"{path.relative_to(package)}: {name}"
+        for path in sorted(package.rglob("*.py"))
+        for name in module_level_imports(_TopLevel().visit(ast.parse(path.read_text())))
+        if name.split(".")[0] == "matplotlib"
+    ]
+    assert not offenders
+    # the check sees a module-level import when there is one
+    planted = ast.parse("import matplotlib.figure\ndef f():\n    import matplotlib\n")
+    assert list(module_level_imports(_TopLevel().visit(planted))) == ["matplotlib.figure"]
