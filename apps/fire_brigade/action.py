@@ -1,0 +1,113 @@
+"""The Action layer (thesis Fig. 32): the robotic layer, executing what the Task layer asks.
+
+It is the only layer that touches the robot, through a
+:class:`~cas_async.Middleware`: in simulation the kinematics and the Environment,
+on hardware the drivers, without any other layer changing. Every command is an
+internal request (a NEGOTIATION) answered when the action is over, with the
+robot's pose (``CompletionStatus``). It also answers the upper layers' sensing
+queries (``RequestInfo``, ``RequestRobotsInRange``).
+
+Fatigue lives here: taking a bucket switches the motion to a decelerating speed
+profile, handing it over resets it to full speed.
+"""
+
+from __future__ import annotations
+
+import math
+
+from cas_async import ConstantSpeed, Decelerating, Message, Middleware
+
+from .base import BrigadeLayer, Params
+from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
+
+__all__ = ["Action"]
+
+
+class Action(BrigadeLayer):
+    """Executes moves, rotations and bucket swaps on the robot's middleware."""
+
+    def __init__(self, params: Params, middleware: Middleware) -> None:
+        super().__init__(params)
+        self.middleware = middleware
+
+    def _speed(self) -> float:
+        if not self.params.mobile:
+            return 0.0
+        return self.middleware.speed_profile.speed_at(0.0)
+
+    def _done(self, action: str, bucket: int = -1) -> CompletionStatus:
+        pose = self.middleware.pose()
+        held = self.middleware.items()
+        return CompletionStatus(
+            action,
+            x=pose.x,
+            y=pose.y,
+            heading=pose.heading,
+            has_bucket=bool(held),
+            bucket=bucket if bucket >= 0 else (held[0] if held else -1),
+        )
+
+    async def get_intra_msg_reply(self, msg: Message) -> Message | None:
+        """Performs the command or answers the query; see the module docs."""
+        if isinstance(msg, RequestInfo):
+            pose = self.middleware.pose()
+            return RequestInfo(pose.x, pose.y, self.kind, self._speed())
+        if isinstance(msg, RequestRobotsInRange):
+            return await self._robots_in_range(msg.radius)
+        if not isinstance(msg, ChangeStatus):
+            self.unexpected(msg, "the Action layer only executes ChangeStatus commands")
+            return None
+        return await self._execute(msg)
+
+    async def _robots_in_range(self, radius: float) -> RequestRobotsInRange:
+        found = await self.middleware.robots_within(radius)
+        pose = self.middleware.pose()
+        return RequestRobotsInRange(
+            radius,
+            ids=found.ids.tolist(),
+            xs=found.xy[:, 0].tolist(),
+            ys=found.xy[:, 1].tolist(),
+            x=pose.x,
+            y=pose.y,
+            speed=self._speed(),
+        )
+
+    async def _execute(self, command: ChangeStatus) -> CompletionStatus | None:
+        status = command.status
+        if status == "Where":
+            return self._done(status)
+        if status == "Rotate":
+            here = self.middleware.pose()
+            await self.middleware.rotate_to(math.atan2(command.y - here.y, command.x - here.x))
+            return self._done(status)
+        if status == "Move":
+            await self.middleware.move_to(command.x, command.y)
+            return self._done(status)
+        if status == "MakeBucket":
+            return self._done(status, self.middleware.create_item())
+        if status == "SwapBucket":
+            if command.has_bucket:
+                return await self._give(command.bucket, command.partner)
+            return self._take(command.bucket, command.partner)
+        self.unexpected(command, f"unknown command {status!r}")
+        return None
+
+    async def _give(self, bucket: int, partner: int) -> CompletionStatus:
+        await self.clock.sleep(self.params.handover_time)
+        self.middleware.hand_over(bucket, partner)  # the one atomic moment of the exchange
+        if self.params.mobile:
+            self.middleware.speed_profile = ConstantSpeed(self.params.speed)
+        return self._done("SwapBucket", bucket)
+
+    def _take(self, bucket: int, giver: int) -> CompletionStatus:
+        if bucket not in self.middleware.items():
+            raise RuntimeError(
+                f"robot {self.robot_id}: robot {giver} reported handing over bucket {bucket}, "
+                f"but this robot holds {list(self.middleware.items())}"
+            )
+        if self.kind is Kind.SINK:
+            self.middleware.retire_item(bucket)
+        elif self.params.mobile:
+            p = self.params
+            self.middleware.speed_profile = Decelerating(p.speed, p.deceleration, p.min_speed)
+        return self._done("SwapBucket", bucket)

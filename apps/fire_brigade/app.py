@@ -1,0 +1,159 @@
+"""The Fire Brigade as a cas_async simulation app: scenario checks and building the swarm."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Final
+
+from cas_async import ConstantSpeed, Layer, Pose, Robot, SimulatedMiddleware
+from cas_async.scenario import Mission, ScenarioError, SimulationSetup
+
+from . import messages
+from .action import Action
+from .base import Params, Point
+from .config import FireBrigadeConfig
+from .goal import Goal
+from .group_activity import GroupActivity
+from .messages import Kind
+from .strategies import strategy_class
+from .task import Task
+
+__all__ = ["MESSAGES", "FireBrigade"]
+
+MESSAGES: Final = tuple(getattr(messages, name) for name in messages.__all__ if name != "Kind")
+"""The app's message classes: they make up the stack fingerprint."""
+
+_REACH: Final = 1e-6
+"""How close two robots must be for a hand-over (they meet at the same point)."""
+
+
+def _inside(point: Point, world: Point) -> bool:
+    return 0 <= point[0] <= world[0] and 0 <= point[1] <= world[1]
+
+
+class FireBrigade:
+    """Generators, Sinks and Transporters moving buckets (thesis chapter 5)."""
+
+    name = "Fire Brigade"
+    item_name = "bucket"
+    config_type = FireBrigadeConfig
+
+    def check(self, config: Any, world: tuple[float, float]) -> None:
+        """Robots inside the world, a sensible spawn area and speeds, a known strategy.
+
+        Raises:
+            ScenarioError: naming each key at fault.
+        """
+        assert isinstance(config, FireBrigadeConfig)
+        problems: list[tuple[str, str]] = []
+        where = f"inside the world (0..{world[0]:g}, 0..{world[1]:g})"
+        stations = config.stations
+        for key, points in (
+            ("stations.generators", stations.generators),
+            ("stations.sinks", stations.sinks),
+        ):
+            if not points:
+                problems.append((key, "expected at least one position, got none"))
+            for index, point in enumerate(points):
+                if not _inside(point, world):
+                    problems.append(
+                        (
+                            f"{key}[{index}]",
+                            f"expected a position {where}, got [{point[0]:g}, {point[1]:g}]",
+                        )
+                    )
+        everyone = [*stations.generators, *stations.sinks]
+        if len(set(everyone)) < len(everyone):
+            problems.append(("stations", "two stations stand at the same position"))
+        fleet = config.transporters
+        for key, point in (
+            ("transporters.spawn_min", fleet.spawn_min),
+            ("transporters.spawn_max", fleet.spawn_max),
+        ):
+            if not _inside(point, world):
+                problems.append(
+                    (key, f"expected a corner {where}, got [{point[0]:g}, {point[1]:g}]")
+                )
+        if fleet.spawn_min[0] > fleet.spawn_max[0] or fleet.spawn_min[1] > fleet.spawn_max[1]:
+            problems.append(
+                (
+                    "transporters.spawn_max",
+                    "expected a corner above and to the right "
+                    f"of spawn_min {list(fleet.spawn_min)}, got {list(fleet.spawn_max)}",
+                )
+            )
+        if fleet.min_speed > fleet.speed:
+            problems.append(
+                (
+                    "transporters.min_speed",
+                    f"expected at most speed ({fleet.speed:g}), got {fleet.min_speed:g}",
+                )
+            )
+        try:
+            strategy_class(config.strategy.name)
+        except ValueError as exc:
+            problems.append(("strategy.name", str(exc)))
+        if problems:
+            raise ScenarioError(problems)
+
+    def build(self, setup: SimulationSetup) -> Mission:
+        """Generators, then Sinks, then Transporters (spawned at random), ids from 1."""
+        config = setup.config
+        assert isinstance(config, FireBrigadeConfig)
+        fleet, rng = config.transporters, setup.rng
+        placed: list[tuple[Kind, Pose]] = [
+            (Kind.GENERATOR, Pose(x, y, math.pi / 2)) for x, y in config.stations.generators
+        ]
+        placed += [(Kind.SINK, Pose(x, y, -math.pi / 2)) for x, y in config.stations.sinks]
+        low, high = fleet.spawn_min, fleet.spawn_max
+        for _ in range(fleet.count):
+            x, y = rng.uniform(low, high)
+            placed.append((Kind.TRANSPORTER, Pose(x, y, rng.uniform(-math.pi, math.pi))))
+        roster = tuple(range(1, len(placed) + 1))
+        strategy = strategy_class(config.strategy.name)
+        robots = []
+        groups: dict[str, list[int]] = {kind.name.title(): [] for kind in Kind}
+        for robot_id, (kind, pose) in zip(roster, placed, strict=True):
+            params = Params(
+                kind=kind,
+                peers=tuple(r for r in roster if r != robot_id),
+                world=setup.world,
+                speed=fleet.speed,
+                deceleration=fleet.deceleration,
+                min_speed=fleet.min_speed,
+                handover_time=fleet.handover_time,
+                range=config.strategy.range,
+                search_step=config.strategy.search_step,
+                retry_interval=config.strategy.retry_interval,
+                search_growth=config.strategy.search_growth,
+                seed=int(rng.integers(2**63)),
+            )
+            setup.environment.add_robot(robot_id, pose, mobile=params.mobile)
+            middleware = SimulatedMiddleware(
+                setup.environment,
+                robot_id,
+                setup.clock,
+                turn_rate=fleet.turn_rate,
+                speed_profile=ConstantSpeed(fleet.speed),
+                reach=_REACH,
+            )
+            layers: list[Layer] = [
+                Goal(params),
+                strategy(params),
+                GroupActivity(params),
+                Task(params),
+                Action(params, middleware),
+            ]
+            robots.append(
+                Robot(
+                    robot_id,
+                    layers,
+                    transport=setup.transport,
+                    clock=setup.clock,
+                    messages=MESSAGES,
+                )
+            )
+            groups[kind.name.title()].append(robot_id)
+        return Mission(
+            robots, config.mission.buckets, groups, extra=lambda: {"strategy": config.strategy.name}
+        )

@@ -1,0 +1,74 @@
+"""What every Fire Brigade layer shares: its level names, the robot's kind and parameters.
+
+The thesis (§5.4) adds an intermediate class between the framework's ``Layer``
+and the application's layers, holding what they all need (the robot's type,
+coordinates, bucket possession, trigonometry). :class:`BrigadeLayer` is that class.
+Each layer keeps its own copy of the state it needs, kept up to date by messages.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cas_async import Layer, Message
+
+from .messages import Kind
+
+__all__ = ["ACTION", "GOAL", "GROUP", "STRATEGY", "TASK", "BrigadeLayer", "Params", "Point"]
+
+Point = tuple[float, float]
+
+GOAL, STRATEGY, GROUP, TASK, ACTION = range(5)
+"""Levels of the five layers, top (0) to bottom (4)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Params:
+    """One robot's constants, the same in all of its layers.
+
+    Attributes:
+        kind: Generator, Sink or Transporter.
+        peers: every other robot of the swarm (the roster, as a UDP directory has it).
+        world: the area's width and height.
+        speed, deceleration, min_speed: a transporter's motion (see ``Transporters``).
+        handover_time: seconds a hand-over takes.
+        range: the partner search radius.
+        search_step: how far a carrier moves toward its sink before looking again.
+        retry_interval: a generator's wait before asking again after refusals.
+        search_growth: a generator's search radius grows by this after each failed round.
+        seed: seeds the layer's own random choices.
+    """
+
+    kind: Kind
+    peers: tuple[int, ...]
+    world: Point
+    speed: float
+    deceleration: float
+    min_speed: float
+    handover_time: float
+    range: float
+    search_step: float
+    retry_interval: float
+    search_growth: float
+    seed: int
+
+    @property
+    def mobile(self) -> bool:
+        """Only transporters move."""
+        return self.kind is Kind.TRANSPORTER
+
+
+class BrigadeLayer(Layer):
+    """The intermediate layer of §5.4: parameters and helpers for every Fire Brigade layer."""
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+
+    @property
+    def kind(self) -> Kind:
+        """This robot's kind."""
+        return self.params.kind
+
+    def unexpected(self, msg: Message, why: str) -> None:
+        """Logs a message this layer's state machine has no use for (never raised)."""
+        self.log.warning("ignored %r: %s", msg, why)

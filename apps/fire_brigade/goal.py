@@ -1,0 +1,122 @@
+"""The Goal layer (thesis Fig. 28): decides whether the robot moves a bucket, and where to.
+
+* A robot that holds a bucket and has no destination finds one: a Generator asks
+  every robot where it is and what it is (``RequestInfo``) and picks the nearest
+  Sink. Sinks never move, so the answer is kept for the Generator's next buckets.
+  A Transporter that receives a bucket takes over the destination its giver chose.
+* With a destination, it hands the responsibility down: ``ChangeStatus("MoveBucket")``.
+* When the layers below report a hand-over (``"Exchanged"``): a Transporter that
+  received a bucket moves it on; one that gave it away goes idle; a Generator
+  makes a new bucket and starts again; a Sink stays idle.
+"""
+
+from __future__ import annotations
+
+from cas_async import Message, MsgType
+
+from .base import ACTION, BrigadeLayer, Params, Point
+from .estimate import distance
+from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo
+
+__all__ = ["Goal"]
+
+
+class Goal(BrigadeLayer):
+    """Top layer: the robot's goal, "move this bucket to that sink" or idle."""
+
+    def __init__(self, params: Params) -> None:
+        super().__init__(params)
+        self.bucket = -1  # the bucket held, -1 when none
+        self.sink = -1  # the destination chosen for it
+        self.sink_at: Point = (0.0, 0.0)
+        self.here: Point = (0.0, 0.0)
+        self.delegated = False  # "MoveBucket" sent down and not yet completed
+        self.asking = False  # a RequestInfo round is under way
+        self.answers: dict[int, RequestInfo] = {}
+        self.sinks: dict[int, Point] | None = None  # known once a round completed
+
+    async def inner_process(self) -> None:
+        """Starts what the state calls for: a destination search or a MoveBucket."""
+        if self.kind is Kind.GENERATOR and self.bucket < 0 and not self.delegated:
+            await self._make_bucket()
+        if self.bucket < 0 or self.delegated:
+            return
+        if self.sink < 0:
+            if self.sinks is None:
+                await self._ask_everyone()
+                return
+            self._choose_sink()
+        self.delegated = True
+        self.send_down(
+            ChangeStatus(
+                "MoveBucket",
+                has_bucket=True,
+                bucket=self.bucket,
+                sink=self.sink,
+                sink_x=self.sink_at[0],
+                sink_y=self.sink_at[1],
+            )
+        )
+
+    async def _make_bucket(self) -> None:
+        # Making a bucket is physical: the robotic layer does it.
+        made = await self.request_layer(ACTION, ChangeStatus("MakeBucket"))
+        assert isinstance(made, CompletionStatus)
+        self.bucket = made.bucket
+        self.here = (made.x, made.y)
+
+    async def _ask_everyone(self) -> None:
+        if self.asking:
+            return
+        self.asking = True
+        where = await self.request_layer(ACTION, RequestInfo())
+        assert isinstance(where, RequestInfo)
+        self.here = (where.x, where.y)
+        self.broadcast(
+            RequestInfo(where.x, where.y, self.kind, msg_type=MsgType.NEGOTIATION),
+            robots=self.params.peers,
+        )
+
+    def _choose_sink(self) -> None:
+        assert self.sinks
+        self.sink, self.sink_at = min(
+            self.sinks.items(), key=lambda item: (distance(self.here, item[1]), item[0])
+        )
+
+    async def handle_msg(self, msg: Message) -> None:
+        """Answers RequestInfo queries; collects the answers to this robot's own."""
+        if not isinstance(msg, RequestInfo):
+            self.unexpected(msg, "the Goal layer only exchanges RequestInfo")
+            return
+        if msg.msg_type == MsgType.NEGOTIATION:
+            where = await self.request_layer(ACTION, RequestInfo())
+            assert isinstance(where, RequestInfo)
+            self.reply(msg, RequestInfo(where.x, where.y, self.kind))
+            return
+        if not self.asking:
+            self.unexpected(msg, "no RequestInfo round is under way")
+            return
+        self.answers[msg.robot_id] = msg
+        if len(self.answers) == len(self.params.peers):
+            self.asking = False
+            self.sinks = {
+                rid: (info.x, info.y)
+                for rid, info in self.answers.items()
+                if info.kind is Kind.SINK
+            }
+            self.answers.clear()
+            if not self.sinks:
+                raise RuntimeError(f"robot {self.robot_id}: no robot of the swarm is a sink")
+
+    async def store_intra_msg(self, msg: Message) -> None:
+        """A hand-over happened below: take the new state."""
+        if not (isinstance(msg, ChangeStatus) and msg.status == "Exchanged"):
+            self.unexpected(msg, "the Goal layer only expects 'Exchanged' from below")
+            return
+        self.delegated = False
+        self.here = (msg.x, msg.y)
+        if msg.has_bucket:
+            self.bucket = msg.bucket
+            self.sink, self.sink_at = msg.sink, (msg.sink_x, msg.sink_y)
+        else:
+            self.bucket = self.sink = -1

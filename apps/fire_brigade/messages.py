@@ -1,0 +1,154 @@
+"""The Fire Brigade's messages (thesis §5.6, Table III), declared as typed classes.
+
+The thesis's messages carry a communication type (negotiation, accept, deny);
+here that is the header's ``msg_type``, set by the runtime for requests and
+replies. Which layer uses which message:
+
+* ``RequestInfo``: Goal to every robot's Goal (NEGOTIATION: "where are you, what
+  are you?"), answered with the replier's position and kind; also how a layer asks
+  its own Action layer where the robot is.
+* ``ChangeStatus``: status changes between neighbouring layers, down (new
+  responsibilities: "MoveBucket", "Partnered", "Meeting", "Carry", "Rotate",
+  "Move", "SwapBucket", "MakeBucket") and up (their completion: "Exchanged",
+  "Moved"). One class with optional fields, as in the thesis.
+* ``RequestRobotsInRange``: Strategy to Action (NEGOTIATION); the reply lists the
+  robots within range and the asker's own position and speed.
+* ``RequestPartner``: Strategy to Strategy: a partnership request (NEGOTIATION)
+  and its ACCEPT or DENY.
+* ``Meet``: Group Activity to Group Activity: the giver's position and fatigue
+  (NEGOTIATION); the partner answers with the meeting point (ACCEPT) or DENY.
+* ``Meeting``: Task to Task: "I am at the meeting point" (NEGOTIATION), answered
+  (ACCEPT) once the partner is there too.
+* ``Handover``: Task to Task: the giver's notice that the bucket changed hands.
+* ``CompletionStatus``: Action to Task: an action finished, and where the robot is.
+"""
+
+from __future__ import annotations
+
+import enum
+
+from cas_async import Message, message
+
+__all__ = [
+    "ChangeStatus",
+    "CompletionStatus",
+    "Handover",
+    "Kind",
+    "Meet",
+    "Meeting",
+    "RequestInfo",
+    "RequestPartner",
+    "RequestRobotsInRange",
+]
+
+
+class Kind(enum.IntEnum):
+    """The three kinds of robot of the Fire Brigade (§5.1)."""
+
+    GENERATOR = 0
+    SINK = 1
+    TRANSPORTER = 2
+
+
+@message
+class RequestInfo(Message):
+    """Position and kind of a robot (and its current speed, 0 when immobile)."""
+
+    x: float = 0.0
+    y: float = 0.0
+    kind: Kind = Kind.TRANSPORTER
+    speed: float = 0.0
+
+
+@message
+class ChangeStatus(Message):
+    """A new responsibility (downwards) or its completion (upwards); see the module docs.
+
+    ``x, y`` is the point the status is about (a meeting point, a leg's end, the
+    robot's position); ``sink`` and ``sink_x, sink_y`` the bucket's destination.
+    """
+
+    status: str
+    partner: int = -1
+    x: float = 0.0
+    y: float = 0.0
+    has_bucket: bool = False
+    bucket: int = -1
+    sink: int = -1
+    sink_x: float = 0.0
+    sink_y: float = 0.0
+
+
+@message
+class RequestRobotsInRange(Message):
+    """The robots within ``radius`` (reply: ids and positions, nearest first).
+
+    The reply also carries the asking robot's own position and current speed, which
+    the Strategy needs to estimate meeting times.
+    """
+
+    radius: float
+    ids: list[int] | None = None
+    xs: list[float] | None = None
+    ys: list[float] | None = None
+    x: float = 0.0
+    y: float = 0.0
+    speed: float = 0.0
+
+
+@message
+class RequestPartner(Message):
+    """A partnership request (NEGOTIATION) from a robot holding ``bucket``, or its answer.
+
+    The request carries the asker's position, kind and the bucket's destination; the
+    answer (ACCEPT or DENY) carries the replier's position and kind.
+    """
+
+    x: float
+    y: float
+    kind: Kind
+    bucket: int = -1
+    sink: int = -1
+    sink_x: float = 0.0
+    sink_y: float = 0.0
+
+
+@message
+class Meet(Message):
+    """Coordinating the meeting point.
+
+    The giver sends its position, kind and fatigue (``speed`` now; 0 when immobile)
+    as a NEGOTIATION; the partner answers ACCEPT with the meeting point in ``x, y``,
+    or DENY when it is not partnered with the giver.
+    """
+
+    x: float
+    y: float
+    kind: Kind = Kind.TRANSPORTER
+    speed: float = 0.0
+
+
+@message
+class Meeting(Message):
+    """Waiting for the partner at the meeting point (NEGOTIATION), and "here too" (ACCEPT)."""
+
+    bucket: int = -1
+
+
+@message
+class Handover(Message):
+    """Sent by the giver once ``bucket`` is in the partner's hands."""
+
+    bucket: int
+
+
+@message
+class CompletionStatus(Message):
+    """The Action layer's report: what finished, and the robot's pose and bucket now."""
+
+    action: str
+    x: float = 0.0
+    y: float = 0.0
+    heading: float = 0.0
+    has_bucket: bool = False
+    bucket: int = -1

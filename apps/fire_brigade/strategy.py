@@ -1,0 +1,281 @@
+"""The Strategy layer (thesis Fig. 29): finding a partner for the bucket.
+
+With a bucket to move (``"MoveBucket"`` from the Goal layer) it asks the Action
+layer for the robots in range, ranks them with :meth:`Strategy.choose` (the one
+method a strategy variant overrides, §5.7), and asks them in that order
+(``RequestPartner``) until one accepts. Then it hands the partnership to the
+Group Activity layer (``"Partnered"``). When nobody accepts, a Transporter carries
+the bucket one ``search_step`` toward its sink and looks again; a Generator, which
+cannot move, waits ``retry_interval`` and asks again within a wider radius.
+
+It also answers other robots' requests: an idle Transporter (no bucket, no
+partner) and a Sink accept; everyone else refuses. Partnerships are not
+interruptible: they last until the bucket changed hands (``"Exchanged"``), which
+is passed up to the Goal layer.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from cas_async import ConstantSpeed, Decelerating, Message, MsgType, SpeedProfile
+
+from .base import ACTION, BrigadeLayer, Params, Point
+from .estimate import distance
+from .messages import ChangeStatus, Kind, RequestPartner, RequestRobotsInRange
+
+__all__ = ["Candidate", "SearchView", "Strategy"]
+
+_ARRIVED = 1e-9
+"""Distance below which a carrier stands at its sink."""
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """A robot in range that might take the bucket."""
+
+    robot: int
+    at: Point
+
+
+@dataclass(frozen=True, slots=True)
+class SearchView:
+    """What a strategy knows when it ranks partners.
+
+    Attributes:
+        robot: this robot's id.
+        kind: this robot's kind (Generators cannot carry the bucket themselves).
+        here: where this robot is.
+        carrying: this robot's speed profile with the bucket from now on (its
+            fatigue so far included); ``None`` for an immobile robot.
+        sink: the destination's id; ``sink_at`` its position.
+        candidates: robots in range, nearest first; the destination sink among them
+            when in range; robots known not to take buckets (other stations) left out.
+        params: this robot's parameters (speeds and deceleration of a fresh partner).
+    """
+
+    robot: int
+    kind: Kind
+    here: Point
+    carrying: SpeedProfile | None
+    sink: int
+    sink_at: Point
+    candidates: tuple[Candidate, ...]
+    params: Params
+
+    @property
+    def fresh_partner(self) -> SpeedProfile:
+        """An empty transporter's profile (it moves at full speed)."""
+        return ConstantSpeed(self.params.speed)
+
+    @property
+    def loaded_partner(self) -> SpeedProfile:
+        """A transporter's profile once it takes the bucket (fresh fatigue)."""
+        p = self.params
+        return Decelerating(p.speed, p.deceleration, min(p.min_speed, p.speed))
+
+    def sink_in_range(self) -> Candidate | None:
+        """The destination, when it is among the candidates."""
+        return next((c for c in self.candidates if c.robot == self.sink), None)
+
+
+class Strategy(BrigadeLayer):
+    """Partner selection; subclasses decide the order in which partners are asked."""
+
+    def __init__(self, params: Params) -> None:
+        super().__init__(params)
+        self.bucket = -1
+        self.sink = -1
+        self.sink_at: Point = (0.0, 0.0)
+        self.here: Point = (0.0, 0.0)
+        self.searching = False  # between "MoveBucket" and a partner or a carried leg
+        self.to_ask: list[int] = []
+        self.asked = -1  # the robot whose answer is awaited
+        self.partners: set[int] = set()  # a Sink may have several at once
+        self.stations: set[int] = set()  # robots that answered as Generator or Sink
+        self.radius = params.range
+        self.waiting_to_retry = False
+
+    def choose(self, view: SearchView) -> list[int]:
+        """The robots to ask, best first (an empty list: carry it, or retry)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement choose()")
+
+    # -- having a bucket ------------------------------------------------------------------
+
+    async def inner_process(self) -> None:
+        """A round that found nobody and nowhere to go is retried after ``retry_interval``."""
+        while self.waiting_to_retry:  # a retry may fail again at once
+            self.waiting_to_retry = False
+            await self.clock.sleep(self.params.retry_interval)
+            await self._search()
+
+    async def store_intra_msg(self, msg: Message) -> None:
+        """From the Goal layer: a bucket to move; from below: a hand-over or a leg done."""
+        if not isinstance(msg, ChangeStatus):
+            self.unexpected(msg, "the Strategy layer expects ChangeStatus")
+        elif msg.status == "MoveBucket":
+            self.bucket, self.sink = msg.bucket, msg.sink
+            self.sink_at = (msg.sink_x, msg.sink_y)
+            self.radius = self.params.range
+            await self._search()
+        elif msg.status == "Moved":
+            await self._search()
+        elif msg.status == "Exchanged":
+            self.partners.discard(msg.partner)
+            if not msg.has_bucket:
+                self.bucket = -1
+            self.send_up(msg)
+        else:
+            self.unexpected(msg, f"unknown status {msg.status!r}")
+
+    async def _search(self) -> None:
+        self.searching = True
+        found = await self.request_layer(ACTION, RequestRobotsInRange(self.radius))
+        assert isinstance(found, RequestRobotsInRange)
+        assert found.ids is not None
+        assert found.xs is not None
+        assert found.ys is not None
+        self.here = (found.x, found.y)
+        candidates = tuple(
+            Candidate(rid, (x, y))
+            for rid, x, y in zip(found.ids, found.xs, found.ys, strict=True)
+            if self._may_take(rid)
+        )
+        view = SearchView(
+            self.robot_id,
+            self.kind,
+            self.here,
+            self._carrying(found.speed),
+            self.sink,
+            self.sink_at,
+            candidates,
+            self.params,
+        )
+        self.to_ask = self.choose(view)
+        self._ask_next()
+
+    def _may_take(self, robot: int) -> bool:
+        """Whether ``robot`` could take the bucket: not a known station, unless the sink.
+
+        An immobile robot (a Generator) cannot hand over to a Sink: they cannot meet.
+        """
+        if robot == self.sink:
+            return self.params.mobile
+        return robot not in self.stations
+
+    def _carrying(self, speed_now: float) -> SpeedProfile | None:
+        if not self.params.mobile:
+            return None
+        p = self.params
+        return Decelerating(speed_now, p.deceleration, min(p.min_speed, speed_now))
+
+    def _ask_next(self) -> None:
+        if self.to_ask:
+            self.asked = self.to_ask.pop(0)
+            self.send(
+                self.asked,
+                RequestPartner(
+                    self.here[0],
+                    self.here[1],
+                    self.kind,
+                    bucket=self.bucket,
+                    sink=self.sink,
+                    sink_x=self.sink_at[0],
+                    sink_y=self.sink_at[1],
+                    msg_type=MsgType.NEGOTIATION,
+                ),
+            )
+            return
+        self.asked = -1
+        if self.params.mobile:
+            self._carry_a_step()
+        else:
+            # A Generator must find a partner: look farther next time (capped at the
+            # world's diagonal, which covers everyone).
+            world = math.hypot(*self.params.world)
+            self.radius = min(self.radius * self.params.search_growth, world)
+            self.waiting_to_retry = True
+
+    def _carry_a_step(self) -> None:
+        gap = distance(self.here, self.sink_at)
+        if gap <= _ARRIVED:
+            # At the sink and nobody to ask (a strategy that skipped it): without a
+            # pause this would search again at the same instant forever.
+            self.waiting_to_retry = True
+            return
+        self.searching = False
+        step = min(self.params.search_step, gap)
+        fraction = step / gap
+        target = (
+            self.here[0] + (self.sink_at[0] - self.here[0]) * fraction,
+            self.here[1] + (self.sink_at[1] - self.here[1]) * fraction,
+        )
+        self.send_down(
+            ChangeStatus(
+                "Carry",
+                x=target[0],
+                y=target[1],
+                has_bucket=True,
+                bucket=self.bucket,
+                sink=self.sink,
+                sink_x=self.sink_at[0],
+                sink_y=self.sink_at[1],
+            )
+        )
+
+    # -- other robots' requests, and answers to ours -----------------------------------------
+
+    async def handle_msg(self, msg: Message) -> None:
+        """Answers partnership requests; takes the answers to this robot's own."""
+        if not isinstance(msg, RequestPartner):
+            self.unexpected(msg, "the Strategy layer only exchanges RequestPartner")
+        elif msg.msg_type == MsgType.NEGOTIATION:
+            self._answer(msg)
+        elif msg.robot_id != self.asked:
+            self.unexpected(msg, f"an answer from robot {msg.robot_id}, not asked")
+        elif msg.msg_type == MsgType.ACCEPT:
+            self._partnered(msg.robot_id, giver=True)
+        else:
+            if msg.kind != Kind.TRANSPORTER:
+                self.stations.add(msg.robot_id)
+            self._ask_next()
+
+    def _free(self, asker: Kind) -> bool:
+        if self.kind is Kind.SINK:
+            return asker == Kind.TRANSPORTER  # two immobile robots cannot meet
+        return (
+            self.kind is Kind.TRANSPORTER
+            and self.bucket < 0
+            and not self.partners
+            and not self.searching
+        )
+
+    def _answer(self, msg: RequestPartner) -> None:
+        here = RequestPartner(self.here[0], self.here[1], self.kind)
+        if not self._free(msg.kind):
+            here.msg_type = MsgType.DENY
+            self.reply(msg, here)
+            return
+        self.bucket, self.sink = -1, msg.sink
+        self.sink_at = (msg.sink_x, msg.sink_y)
+        self._partnered(msg.robot_id, giver=False, bucket=msg.bucket)
+        self.reply(msg, here)
+
+    def _partnered(self, partner: int, *, giver: bool, bucket: int = -1) -> None:
+        # Group Activity hears of the partnership before the partner does: its Meet
+        # request can only arrive after this robot's answer.
+        self.partners.add(partner)
+        self.asked = -1
+        self.searching = False
+        self.send_down(
+            ChangeStatus(
+                "Partnered",
+                partner=partner,
+                has_bucket=giver,
+                bucket=self.bucket if giver else bucket,
+                sink=self.sink,
+                sink_x=self.sink_at[0],
+                sink_y=self.sink_at[1],
+            )
+        )

@@ -1,0 +1,162 @@
+"""``python -m cas_async``: the command line.
+
+``run SCENARIO.toml`` loads and validates the scenario (exit code 2 when it is
+wrong, before anything starts), runs it with a live progress line, prints the
+summary table, and writes ``results.json``, ``trace.csv`` and the PNG figures to
+the output directory. Ctrl-C (or SIGTERM) stops the run cleanly and still writes
+what was measured.
+
+Exit codes: 0 the mission completed; 1 it failed or ran out of simulated time;
+2 the command line or the scenario is wrong; 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import signal
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Final, TextIO
+
+from .runner import run
+from .scenario import RunResult, RunStatus, Scenario, ScenarioError, load_scenario, run_scenario
+from .scenario.report import summary_table, write_results
+from .scenario.trace import Trace
+
+__all__ = ["main"]
+
+EXIT_OK: Final = 0
+EXIT_FAILED: Final = 1
+EXIT_USAGE: Final = 2
+EXIT_INTERRUPTED: Final = 130
+
+_STATUS_EXIT: Final = {
+    RunStatus.COMPLETED: EXIT_OK,
+    RunStatus.FAILED: EXIT_FAILED,
+    RunStatus.TIMED_OUT: EXIT_FAILED,
+    RunStatus.INTERRUPTED: EXIT_INTERRUPTED,
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m cas_async", description="cas_async: collaborative autonomous systems"
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    runner = commands.add_parser(
+        "run",
+        help="run a scenario file",
+        description=("Run a simulation scenario (a TOML file) and write its results."),
+    )
+    runner.add_argument("scenario", type=Path, help="the scenario file (TOML)")
+    runner.add_argument("--seed", type=int, help="random seed (overrides run.seed)")
+    timing = runner.add_mutually_exclusive_group()
+    timing.add_argument(
+        "--time-factor",
+        type=float,
+        metavar="X",
+        help="simulated seconds per wall second (overrides run.time_factor)",
+    )
+    timing.add_argument(
+        "--virtual",
+        action="store_true",
+        help="virtual time: as fast as possible, deterministic (memory transport)",
+    )
+    runner.add_argument(
+        "--transport", choices=("udp", "memory"), help="how robots talk (overrides run.transport)"
+    )
+    runner.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="where to write results.json, trace.csv and the figures "
+        "(default: runs/<scenario>-seed<N>)",
+    )
+    runner.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    runner.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        dest="overrides",
+        help="override a scenario key, e.g. strategy.name=solo",
+    )
+    return parser
+
+
+def _overrides(args: argparse.Namespace) -> list[str]:
+    """The --set overrides, then the dedicated flags (which win)."""
+    overrides = list(args.overrides)
+    if args.seed is not None:
+        overrides.append(f"run.seed={args.seed}")
+    if args.time_factor is not None:
+        overrides += [f"run.time_factor={args.time_factor!r}", "run.virtual=false"]
+    if args.virtual:
+        overrides.append("run.virtual=true")
+        if args.transport is None:
+            overrides.append('run.transport="memory"')
+    if args.transport is not None:
+        overrides.append(f'run.transport="{args.transport}"')
+    return overrides
+
+
+async def _run_until_signalled(scenario: Scenario, stream: TextIO) -> tuple[RunResult, Trace]:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    handled = []
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(signum, stop.set)
+            handled.append(signum)
+        except (NotImplementedError, RuntimeError):  # not the main thread, or no support
+            pass
+    try:
+        return await run_scenario(scenario, progress_to=stream, stop=stop)
+    finally:
+        for signum in handled:
+            loop.remove_signal_handler(signum)
+
+
+def _write_outputs(
+    result: RunResult, trace: Trace, scenario: Scenario, out: Path, plots: bool
+) -> list[Path]:
+    written = [write_results(result, out)]
+    trace_path = out / "trace.csv"
+    trace.write_csv(trace_path)
+    written.append(trace_path)
+    if plots:
+        from .scenario.plots import write_plots  # matplotlib is imported only here
+
+        title = f"{result.app}, {scenario.path.name}, seed {result.seed}"
+        written += write_plots(
+            trace, result.groups, (scenario.world.width, scenario.world.height), out, title=title
+        )
+    return written
+
+
+def _command_run(args: argparse.Namespace, stdout: TextIO, stderr: TextIO) -> int:
+    try:
+        scenario = load_scenario(args.scenario, _overrides(args))
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
+    out = args.out or Path("runs") / f"{scenario.path.stem}-seed{scenario.run.seed}"
+    result, trace = run(_run_until_signalled(scenario, stderr), virtual=scenario.run.virtual)
+    print(summary_table(result), file=stdout)
+    written = _write_outputs(result, trace, scenario, out, not args.no_plots)
+    print(f"wrote {', '.join(path.name for path in written)} to {out}/", file=stdout)
+    return _STATUS_EXIT[result.status]
+
+
+def main(
+    argv: Sequence[str] | None = None, *, stdout: TextIO | None = None, stderr: TextIO | None = None
+) -> int:
+    """Runs the command line; returns the exit code."""
+    stdout = stdout or sys.stdout
+    stderr = stderr or sys.stderr
+    args = _parser().parse_args(argv)
+    if args.command == "run":
+        return _command_run(args, stdout, stderr)
+    raise AssertionError(f"unhandled command {args.command!r}")  # argparse requires one

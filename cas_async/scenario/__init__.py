@@ -1,0 +1,53 @@
+"""Scenario files and runs: ``python -m cas_async run scenario.toml``, and the pieces behind it.
+
+* :mod:`.config`: TOML tables to frozen dataclasses, with errors naming file and key;
+  ``setting()`` declares a key's default, bounds and doc.
+* :mod:`.loader`: a scenario file end to end (``app``, ``[run]``, ``[world]``, the app's
+  sections, ``--set`` overrides).
+* :mod:`.app`: the contract an application implements (:class:`SimulationApp`).
+* :mod:`.runner`: one run as a coroutine; :mod:`.results`: what it measured.
+* :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
+  the summary table and results.json, PNG figures, the live progress line.
+"""
+
+from .app import Mission, SimulationApp, SimulationSetup
+from .config import ScenarioError, from_toml, setting
+from .loader import (
+    RunConfig,
+    Scenario,
+    WorldConfig,
+    apply_overrides,
+    load_scenario,
+    parse_override,
+)
+from .plots import write_plots
+from .progress import Progress
+from .report import results_dict, statistics, summary_table, write_results
+from .results import RunResult, RunStatus
+from .runner import run_scenario
+from .trace import Trace
+
+__all__ = [
+    "Mission",
+    "Progress",
+    "RunConfig",
+    "RunResult",
+    "RunStatus",
+    "Scenario",
+    "ScenarioError",
+    "SimulationApp",
+    "SimulationSetup",
+    "Trace",
+    "WorldConfig",
+    "apply_overrides",
+    "from_toml",
+    "load_scenario",
+    "parse_override",
+    "results_dict",
+    "run_scenario",
+    "setting",
+    "statistics",
+    "summary_table",
+    "write_plots",
+    "write_results",
+]

@@ -1,0 +1,231 @@
+"""Running a loaded scenario: clock, transport, Environment, the app's swarm, and measuring it.
+
+``run_scenario`` is the whole run as one coroutine, so it can be embedded in any
+asyncio program; the CLI only adds argument parsing, signals and output files.
+The run ends when the app's target number of items has been retired, when
+``run.max_time`` simulated seconds have passed, when ``stop`` is set (Ctrl-C), or
+when a layer fails; in every case the result says which, and holds what was
+measured up to then.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import Callable
+from typing import TextIO
+
+import numpy as np
+
+from ..clock import Clock, ScaledClock, VirtualClock
+from ..errors import LayerError
+from ..sim.environment import Environment
+from ..sim.items import ItemEvent, ItemEventKind
+from ..swarm import Swarm
+from ..transport.base import Transport
+from ..transport.memory import MemoryTransport
+from ..transport.udp import UdpTransport
+from .app import Mission, SimulationSetup
+from .loader import Scenario
+from .progress import Progress
+from .results import RunResult, RunStatus
+from .trace import Trace
+
+__all__ = ["run_scenario"]
+
+
+def _transport(name: str) -> Transport:
+    return MemoryTransport() if name == "memory" else UdpTransport()
+
+
+def _clock(scenario: Scenario) -> Clock:
+    run = scenario.run
+    return VirtualClock() if run.virtual else ScaledClock(run.time_factor)
+
+
+async def run_scenario(
+    scenario: Scenario,
+    *,
+    progress_to: TextIO | None = None,
+    stop: asyncio.Event | None = None,
+    observe: Callable[[Environment], None] | None = None,
+    wall_clock: Callable[[], float] = time.perf_counter,
+) -> tuple[RunResult, Trace]:
+    """Runs ``scenario`` to its end and returns what it measured and the position trace.
+
+    Run it on the loop the scenario needs: ``cas_async.run(run_scenario(s),
+    virtual=s.run.virtual)``.
+
+    Args:
+        scenario: a loaded, validated scenario.
+        progress_to: where to show progress while running (simulated time, items
+            delivered, exchanges): a live line on a terminal, plain lines otherwise.
+        stop: when set, the run stops early with status INTERRUPTED.
+        observe: called with the Environment once the robots are in it, before they
+            start (a test can subscribe to ``environment.items`` there, for instance).
+        wall_clock: measures the wall time.
+    """
+    started = wall_clock()
+    run = scenario.run
+    world = (scenario.world.width, scenario.world.height)
+    environment = Environment()
+    clock = _clock(scenario)
+    setup = SimulationSetup(
+        scenario.config,
+        world,
+        environment,
+        clock,
+        _transport(run.transport),
+        np.random.default_rng(run.seed),
+    )
+    mission = scenario.app.build(setup)
+    progress = None
+    if progress_to is not None:
+        progress = Progress(
+            progress_to,
+            target=mission.target,
+            item_name=scenario.app.item_name,
+            interval=run.progress_interval,
+        )
+    result = RunResult(
+        scenario=str(scenario.path),
+        app=scenario.app.name,
+        item_name=scenario.app.item_name,
+        seed=run.seed,
+        target=mission.target,
+        groups={label: list(ids) for label, ids in mission.groups.items()},
+        config=scenario.data,
+    )
+    trace = Trace(environment.robot_ids)
+    ledger = environment.items
+    complete = asyncio.Event()
+
+    def on_item(event: ItemEvent) -> None:
+        if event.kind is ItemEventKind.TRANSFERRED:
+            trace.exchange(event.t, ledger.transfers, environment.positions_at(event.t).xy)
+        elif event.kind is ItemEventKind.RETIRED and ledger.retired == mission.target:
+            result.makespan = event.t
+            complete.set()
+        if progress is not None:
+            progress.update(event.t, ledger.retired, ledger.transfers)
+
+    ledger.subscribe(on_item)
+    if observe is not None:
+        observe(environment)
+    swarm = Swarm(mission.robots)
+    try:
+        async with swarm:
+            result.status, result.error = await _until_done(
+                swarm,
+                clock,
+                run.max_time,
+                run.trace_interval,
+                complete,
+                stop,
+                lambda t: _sample(
+                    t, environment, trace, progress, ledger.retired, ledger.transfers
+                ),
+            )
+    except LayerError as exc:  # raised again on the way out when a layer failed
+        result.status, result.error = RunStatus.FAILED, str(exc)
+    _measure(result, mission, swarm, environment, clock.now())
+    result.wall_time = wall_clock() - started
+    if progress is not None:
+        progress.close(final=True)
+    return result, trace
+
+
+def _sample(
+    t: float,
+    environment: Environment,
+    trace: Trace,
+    progress: Progress | None,
+    delivered: int,
+    exchanges: int,
+) -> None:
+    # Every hand-over already checks the items it touches; this is the full audit.
+    environment.items.check()
+    trace.sample(t, environment.positions_at(t).xy)
+    if progress is not None:
+        progress.update(t, delivered, exchanges)
+
+
+async def _until_done(
+    swarm: Swarm,
+    clock: Clock,
+    max_time: float,
+    interval: float,
+    complete: asyncio.Event,
+    stop: asyncio.Event | None,
+    sample: Callable[[float], None],
+) -> tuple[RunStatus, str | None]:
+    """Samples every ``interval`` simulated seconds until one of the ends; returns which."""
+
+    async def sampling() -> None:
+        tick = 0
+        while True:
+            # Absolute instants: no drift however late each wake-up is.
+            t = tick * interval
+            await clock.sleep_until(t)
+            sample(clock.now())
+            tick += 1
+
+    waits = {
+        "complete": asyncio.ensure_future(complete.wait()),
+        "timeout": asyncio.ensure_future(clock.sleep_until(max_time)),
+        "swarm": asyncio.ensure_future(swarm.run()),
+        "sampling": asyncio.ensure_future(sampling()),
+    }
+    if stop is not None:
+        waits["stop"] = asyncio.ensure_future(stop.wait())
+    try:
+        done, _ = await asyncio.wait(waits.values(), return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for task in waits.values():
+            task.cancel()
+        for task in waits.values():
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+    if waits["complete"] in done:
+        return RunStatus.COMPLETED, None
+    if waits["swarm"] in done or waits["sampling"] in done:
+        error = (waits["swarm"] if waits["swarm"] in done else waits["sampling"]).exception()
+        return RunStatus.FAILED, str(error) if error is not None else "the swarm stopped"
+    if "stop" in waits and waits["stop"] in done:
+        return RunStatus.INTERRUPTED, None
+    return RunStatus.TIMED_OUT, None
+
+
+def _measure(
+    result: RunResult, mission: Mission, swarm: Swarm, environment: Environment, now: float
+) -> None:
+    ledger = environment.items
+    result.sim_time = now
+    result.created, result.delivered, result.exchanges = (
+        ledger.created,
+        ledger.retired,
+        ledger.transfers,
+    )
+    for event in ledger.events:
+        if event.kind is ItemEventKind.RETIRED:
+            history = ledger.history(event.item)
+            result.travel_times.append(event.t - history[0].t)
+            result.handovers_per_item.append(
+                sum(e.kind is ItemEventKind.TRANSFERRED for e in history)
+            )
+    result.distance = {
+        robot_id: travelled
+        for robot_id, travelled in environment.distances(now).items()
+        if environment.is_mobile(robot_id)
+    }
+    counts = swarm.message_counts()
+    result.messages_internal = dict(sorted(counts["internal"].items()))
+    result.messages_external = dict(sorted(counts["external"].items()))
+    errors: dict[str, int] = {}
+    for robot in swarm:
+        for reason, n in robot.dropped.items():
+            errors[reason] = errors.get(reason, 0) + n
+    result.protocol_errors = dict(sorted(errors.items()))
+    if mission.extra is not None:
+        result.extra = dict(mission.extra())
