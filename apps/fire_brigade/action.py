@@ -36,15 +36,22 @@ class Action(BrigadeLayer):
         return self.middleware.speed_profile.speed_at(0.0)
 
     def _done(self, action: str, bucket: int = -1) -> CompletionStatus:
+        """The report of ``action``: the pose, and whether ``bucket`` is held now.
+
+        Without a ``bucket``, whether the robot holds any. (A Sink may be handed
+        several buckets at once: the report is about the one this action was for.)
+        """
         pose = self.middleware.pose()
         held = self.middleware.items()
+        if bucket < 0 and held:
+            bucket = held[0]
         return CompletionStatus(
             action,
             x=pose.x,
             y=pose.y,
             heading=pose.heading,
-            has_bucket=bool(held),
-            bucket=bucket if bucket >= 0 else (held[0] if held else -1),
+            has_bucket=bucket in held,
+            bucket=bucket,
         )
 
     async def get_intra_msg_reply(self, msg: Message) -> Message | None:

@@ -115,7 +115,7 @@ class Goal(BrigadeLayer):
             return
         self.delegated = False
         self.here = (msg.x, msg.y)
-        if msg.has_bucket:
+        if msg.has_bucket and self.kind is not Kind.SINK:
             self.bucket = msg.bucket
             self.sink, self.sink_at = msg.sink, (msg.sink_x, msg.sink_y)
         else:

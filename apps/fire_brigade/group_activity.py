@@ -50,7 +50,14 @@ class GroupActivity(BrigadeLayer):
                 where = await self._where()
                 self.send(
                     msg.partner,
-                    Meet(where.x, where.y, self.kind, where.speed, msg_type=MsgType.NEGOTIATION),
+                    Meet(
+                        where.x,
+                        where.y,
+                        self.kind,
+                        where.speed,
+                        deal=msg.deal,
+                        msg_type=MsgType.NEGOTIATION,
+                    ),
                 )
         elif msg.status == "Carry":
             self.send_down(msg)
@@ -68,6 +75,8 @@ class GroupActivity(BrigadeLayer):
             self.unexpected(msg, "the Group Activity layer only exchanges Meet")
             return
         partnership = self.partnerships.get(msg.robot_id)
+        if partnership is not None and partnership.deal != msg.deal:
+            partnership = None  # a message of an earlier partnership with that robot
         if msg.msg_type == MsgType.NEGOTIATION:
             if partnership is None or partnership.has_bucket:
                 refusal = Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY)
@@ -81,7 +90,7 @@ class GroupActivity(BrigadeLayer):
                 self._profile(msg.speed, carrying=True),
                 self._profile(where.speed, carrying=False),
             )
-            self.reply(msg, Meet(point[0], point[1], self.kind))
+            self.reply(msg, Meet(point[0], point[1], self.kind, deal=msg.deal))
             self._meet_at(partnership, point)
         elif partnership is None or msg.msg_type == MsgType.DENY:
             # Cannot happen between robots running this app: partnerships are agreed first.
@@ -101,5 +110,6 @@ class GroupActivity(BrigadeLayer):
                 sink=partnership.sink,
                 sink_x=partnership.sink_x,
                 sink_y=partnership.sink_y,
+                deal=partnership.deal,
             )
         )

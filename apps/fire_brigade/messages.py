@@ -65,7 +65,8 @@ class ChangeStatus(Message):
     """A new responsibility (downwards) or its completion (upwards); see the module docs.
 
     ``x, y`` is the point the status is about (a meeting point, a leg's end, the
-    robot's position); ``sink`` and ``sink_x, sink_y`` the bucket's destination.
+    robot's position); ``sink`` and ``sink_x, sink_y`` the bucket's destination;
+    ``deal`` identifies a partnership (see ``RequestPartner``).
     """
 
     status: str
@@ -77,6 +78,7 @@ class ChangeStatus(Message):
     sink: int = -1
     sink_x: float = 0.0
     sink_y: float = 0.0
+    deal: int = -1
 
 
 @message
@@ -101,7 +103,10 @@ class RequestPartner(Message):
     """A partnership request (NEGOTIATION) from a robot holding ``bucket``, or its answer.
 
     The request carries the asker's position, kind and the bucket's destination; the
-    answer (ACCEPT or DENY) carries the replier's position and kind.
+    answer (ACCEPT or DENY) carries the replier's position and kind. An accepted
+    request's ``msg_id`` becomes the partnership's ``deal``: the later messages of
+    the partnership carry it, so a late message of an earlier partnership between
+    the same two robots is never taken for one of this partnership.
     """
 
     x: float
@@ -126,13 +131,14 @@ class Meet(Message):
     y: float
     kind: Kind = Kind.TRANSPORTER
     speed: float = 0.0
+    deal: int = -1
 
 
 @message
 class Meeting(Message):
     """Waiting for the partner at the meeting point (NEGOTIATION), and "here too" (ACCEPT)."""
 
-    bucket: int = -1
+    deal: int
 
 
 @message
@@ -140,6 +146,7 @@ class Handover(Message):
     """Sent by the giver once ``bucket`` is in the partner's hands."""
 
     bucket: int
+    deal: int
 
 
 @message

@@ -92,6 +92,7 @@ class Strategy(BrigadeLayer):
         self.searching = False  # between "MoveBucket" and a partner or a carried leg
         self.to_ask: list[int] = []
         self.asked = -1  # the robot whose answer is awaited
+        self.asked_in = -1  # the msg_id of that request: its answer's corr_id
         self.partners: set[int] = set()  # a Sink may have several at once
         self.stations: set[int] = set()  # robots that answered as Generator or Sink
         self.radius = params.range
@@ -123,8 +124,9 @@ class Strategy(BrigadeLayer):
             await self._search()
         elif msg.status == "Exchanged":
             self.partners.discard(msg.partner)
-            if not msg.has_bucket:
-                self.bucket = -1
+            # Hold the bucket from now on, not from the Goal layer's "MoveBucket": a
+            # partnership request arriving in between must be refused.
+            self.bucket = msg.bucket if msg.has_bucket else -1
             self.send_up(msg)
         else:
             self.unexpected(msg, f"unknown status {msg.status!r}")
@@ -173,19 +175,18 @@ class Strategy(BrigadeLayer):
     def _ask_next(self) -> None:
         if self.to_ask:
             self.asked = self.to_ask.pop(0)
-            self.send(
-                self.asked,
-                RequestPartner(
-                    self.here[0],
-                    self.here[1],
-                    self.kind,
-                    bucket=self.bucket,
-                    sink=self.sink,
-                    sink_x=self.sink_at[0],
-                    sink_y=self.sink_at[1],
-                    msg_type=MsgType.NEGOTIATION,
-                ),
+            request = RequestPartner(
+                self.here[0],
+                self.here[1],
+                self.kind,
+                bucket=self.bucket,
+                sink=self.sink,
+                sink_x=self.sink_at[0],
+                sink_y=self.sink_at[1],
+                msg_type=MsgType.NEGOTIATION,
             )
+            self.send(self.asked, request)
+            self.asked_in = request.msg_id  # stamped by send()
             return
         self.asked = -1
         if self.params.mobile:
@@ -232,10 +233,10 @@ class Strategy(BrigadeLayer):
             self.unexpected(msg, "the Strategy layer only exchanges RequestPartner")
         elif msg.msg_type == MsgType.NEGOTIATION:
             self._answer(msg)
-        elif msg.robot_id != self.asked:
-            self.unexpected(msg, f"an answer from robot {msg.robot_id}, not asked")
+        elif msg.robot_id != self.asked or msg.corr_id != self.asked_in:
+            self.unexpected(msg, "not the answer awaited")
         elif msg.msg_type == MsgType.ACCEPT:
-            self._partnered(msg.robot_id, giver=True)
+            self._partnered(msg.robot_id, giver=True, deal=self.asked_in)
         else:
             if msg.kind != Kind.TRANSPORTER:
                 self.stations.add(msg.robot_id)
@@ -259,10 +260,10 @@ class Strategy(BrigadeLayer):
             return
         self.bucket, self.sink = -1, msg.sink
         self.sink_at = (msg.sink_x, msg.sink_y)
-        self._partnered(msg.robot_id, giver=False, bucket=msg.bucket)
+        self._partnered(msg.robot_id, giver=False, bucket=msg.bucket, deal=msg.msg_id)
         self.reply(msg, here)
 
-    def _partnered(self, partner: int, *, giver: bool, bucket: int = -1) -> None:
+    def _partnered(self, partner: int, *, giver: bool, deal: int, bucket: int = -1) -> None:
         # Group Activity hears of the partnership before the partner does: its Meet
         # request can only arrive after this robot's answer.
         self.partners.add(partner)
@@ -277,5 +278,6 @@ class Strategy(BrigadeLayer):
                 sink=self.sink,
                 sink_x=self.sink_at[0],
                 sink_y=self.sink_at[1],
+                deal=deal,
             )
         )

@@ -71,7 +71,7 @@ class Task(BrigadeLayer):
                 await self._go_to(msg.x, msg.y)
             meeting.arrived = True
             # "I am here", as a request the partner answers once it is there too.
-            self.send(msg.partner, Meeting(msg.bucket, msg_type=MsgType.NEGOTIATION))
+            self.send(msg.partner, Meeting(msg.deal, msg_type=MsgType.NEGOTIATION))
             await self._progress(msg.partner)
         elif msg.status == "Carry":
             await self._go_to(msg.x, msg.y)
@@ -83,20 +83,24 @@ class Task(BrigadeLayer):
     async def handle_msg(self, msg: Message) -> None:
         """The partner's Meeting (it is there) or Handover (the bucket is ours)."""
         meeting = self.meetings.get(msg.robot_id)
-        if meeting is None:
-            # When both robots arrive at nearly the same time their Meeting requests
-            # cross, and the second answer comes after the swap: nothing is left to do.
-            if not (isinstance(msg, Meeting) and msg.msg_type == MsgType.ACCEPT):
-                self.unexpected(msg, f"no meeting with robot {msg.robot_id}")
+        if not isinstance(msg, Meeting | Handover):
+            self.unexpected(msg, "the Task layer only exchanges Meeting and Handover")
+            return
+        if meeting is None or msg.deal != meeting.plan.deal:
+            # When both robots arrive at nearly the same time their Meeting messages
+            # cross, and the second one comes after the swap, perhaps even during a new
+            # partnership of the same two robots: it belongs to a finished deal.
+            if isinstance(msg, Handover):
+                self.unexpected(msg, f"no meeting with robot {msg.robot_id} for this deal")
             return
         if isinstance(msg, Meeting):
             meeting.partner_arrived = True
             if msg.msg_type == MsgType.NEGOTIATION and meeting.arrived:
-                self.reply(msg, Meeting(meeting.plan.bucket))
-        elif isinstance(msg, Handover) and not meeting.plan.has_bucket:
+                self.reply(msg, Meeting(meeting.plan.deal))
+        elif not meeting.plan.has_bucket:
             meeting.partner_arrived = meeting.handed_over = True
         else:
-            self.unexpected(msg, "the Task layer only exchanges Meeting and Handover")
+            self.unexpected(msg, "a Handover to the giver")
             return
         await self._progress(msg.robot_id)
 
@@ -111,7 +115,7 @@ class Task(BrigadeLayer):
         )
         if plan.has_bucket:
             done = await self._act(swap)
-            self.send(partner, Handover(plan.bucket))
+            self.send(partner, Handover(plan.bucket, plan.deal))
         elif meeting.handed_over:
             done = await self._act(swap)
         else:

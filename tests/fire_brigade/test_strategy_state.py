@@ -1,0 +1,66 @@
+"""The Strategy layer's answers to partnership requests follow what the robot holds."""
+
+from __future__ import annotations
+
+import cas_async
+from apps.fire_brigade import MESSAGES, TimeStrategy
+from apps.fire_brigade.base import Params
+from apps.fire_brigade.messages import ChangeStatus, Kind, RequestPartner
+from cas_async import Layer, MemoryTransport, Message, MsgType, Robot, Swarm, VirtualClock
+
+
+def _params(kind: Kind) -> Params:
+    return Params(
+        kind=kind,
+        peers=(),
+        world=(10.0, 10.0),
+        speed=3.0,
+        deceleration=0.5,
+        min_speed=0.6,
+        handover_time=0.5,
+        range=5.0,
+        search_step=1.0,
+        retry_interval=1.0,
+        search_growth=2.0,
+        seed=0,
+    )
+
+
+class Asker(Layer):
+    """Asks robot 1 for a partnership and keeps the answer."""
+
+    def __init__(self) -> None:
+        self.answers: list[Message] = []
+
+    async def handle_msg(self, msg: Message) -> None:
+        self.answers.append(msg)
+
+
+def _ask(target: int, asker: Asker) -> None:
+    asker.send(
+        target, RequestPartner(1.0, 1.0, Kind.TRANSPORTER, bucket=9, msg_type=MsgType.NEGOTIATION)
+    )
+
+
+def test_a_transporter_that_just_received_a_bucket_refuses_partners() -> None:
+    """Between "Exchanged" going up and "MoveBucket" coming down, the robot holds a bucket."""
+
+    async def main() -> list[MsgType]:
+        transport, clock = MemoryTransport(), VirtualClock()
+        strategy, asker = TimeStrategy(_params(Kind.TRANSPORTER)), Asker()
+        robots = [
+            Robot(1, [strategy], transport=transport, clock=clock, messages=MESSAGES),
+            Robot(2, [asker], transport=transport, clock=clock, messages=MESSAGES),
+        ]
+        async with Swarm(robots):
+            _ask(1, asker)  # idle: accepted
+            await clock.sleep(1)
+            # the first partnership completes, and this robot now holds the bucket
+            await strategy.store_intra_msg(
+                ChangeStatus("Exchanged", partner=2, has_bucket=True, bucket=9)
+            )
+            _ask(1, asker)
+            await clock.sleep(1)
+        return [answer.msg_type for answer in asker.answers]
+
+    assert cas_async.run(main(), virtual=True) == [MsgType.ACCEPT, MsgType.DENY]
