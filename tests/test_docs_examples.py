@@ -37,3 +37,17 @@ def test_two_robots_example_runs() -> None:
     assert result.returncode == 0, result.stderr
     assert "robot 1 caught throw 4" in result.stdout
     assert "4 throws in" in result.stdout
+
+
+def test_readme_main_job_runs_as_written(tmp_path: Path) -> None:
+    """The set-up's first command, run as the README says (output redirected to tmp_path)."""
+    readme = (ROOT / "README.md").read_text()
+    match = re.search(r"&& python -m cas_async run (\S+)", readme)
+    assert match, "README lost its main job"
+    scenario = match.group(1)
+    assert (ROOT / scenario).is_file()
+    result = _run(["-m", "cas_async", "run", scenario, "--out", str(tmp_path)])
+    assert result.returncode == 0, result.stderr
+    assert "20 of 20" in result.stdout
+    assert "completed" in result.stdout
+    assert {p.name for p in tmp_path.iterdir()} >= {"results.json", "trace.csv"}
