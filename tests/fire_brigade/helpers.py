@@ -7,8 +7,7 @@ from pathlib import Path
 
 import cas_async
 from cas_async import Environment
-from cas_async.scenario import RunResult, load_scenario, run_scenario
-from cas_async.scenario.trace import Trace
+from cas_async.scenario import RunResult, Trace, load_scenario, run_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "apps" / "fire_brigade" / "scenarios"
 VIRTUAL = ("run.virtual=true", 'run.transport="memory"')
