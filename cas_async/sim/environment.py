@@ -40,6 +40,11 @@ __all__ = ["Environment"]
 _START_TOLERANCE: Final = 1e-9
 
 
+def _check_instant(t: float) -> None:
+    if math.isnan(t):
+        raise SimulationError("t must be a number, got nan")
+
+
 @dataclass(slots=True)
 class _Robot:
     """One robot's entry: its current motion, since when, and its row in the table."""
@@ -216,8 +221,7 @@ class Environment:
             SimulationError: ``t`` is NaN.
         """
         robot = self._robot(robot_id)
-        if math.isnan(t):
-            raise SimulationError("t must be a number, got nan")
+        _check_instant(t)
         return robot.motion.pose_at(t - robot.since)
 
     def positions_at(self, t: float) -> Positions:
@@ -226,8 +230,7 @@ class Environment:
         Raises:
             SimulationError: ``t`` is NaN.
         """
-        if math.isnan(t):
-            raise SimulationError("t must be a number, got nan")
+        _check_instant(t)
         cached = self._cache
         if cached is not None and cached[0] == t:
             return cached[1]
@@ -276,8 +279,7 @@ class Environment:
             SimulationError: ``t`` is NaN.
         """
         robot = self._robot(robot_id)
-        if math.isnan(t):
-            raise SimulationError("t must be a number, got nan")
+        _check_instant(t)
         return robot.travelled(t)
 
     def distances(self, t: float) -> dict[RobotId, float]:
@@ -286,8 +288,7 @@ class Environment:
         Raises:
             SimulationError: ``t`` is NaN.
         """
-        if math.isnan(t):
-            raise SimulationError("t must be a number, got nan")
+        _check_instant(t)
         return {robot_id: robot.travelled(t) for robot_id, robot in self._robots.items()}
 
     # -- items --------------------------------------------------------------------------
