@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Final, TextIO
 
@@ -143,11 +145,35 @@ def _command_run(args: argparse.Namespace, stdout: TextIO, stderr: TextIO) -> in
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE
     out = args.out or Path("runs") / f"{scenario.path.stem}-seed{scenario.run.seed}"
+    try:  # before the run: a long run must not end in "cannot write"
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
+        return EXIT_USAGE
     result, trace = run(_run_until_signalled(scenario, stderr), virtual=scenario.run.virtual)
-    print(summary_table(result), file=stdout)
-    written = _write_outputs(result, trace, scenario, out, not args.no_plots)
-    print(f"wrote {', '.join(path.name for path in written)} to {out}/", file=stdout)
-    return _STATUS_EXIT[result.status]
+    with _signals_deferred() as signalled:  # what was measured is written whatever comes
+        print(summary_table(result), file=stdout)
+        written = _write_outputs(result, trace, scenario, out, not args.no_plots)
+        print(f"wrote {', '.join(path.name for path in written)} to {out}/", file=stdout)
+    return EXIT_INTERRUPTED if signalled else _STATUS_EXIT[result.status]
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[list[int]]:
+    """SIGINT and SIGTERM are noted, not acted on, inside the block (main thread only)."""
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+    previous = {
+        signum: signal.signal(signum, lambda signum, _frame: received.append(signum))
+        for signum in (signal.SIGINT, signal.SIGTERM)
+    }
+    try:
+        yield received
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def main(

@@ -150,6 +150,11 @@ def write_results(result: RunResult, out_dir: Path) -> Path:
 def _atomic_text_file(path: Path) -> Iterator[TextIO]:
     """A UTF-8 text stream that becomes ``path`` only if the ``with`` body completes."""
     fd, temp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    # mkstemp makes the file private (0600); a result file gets the usual mode
+    # (0666 less the umask), like any file the program writes.
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(fd, 0o666 & ~umask)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as stream:
             yield stream
