@@ -28,11 +28,12 @@ DEFAULT_EXTERNAL_LIMIT: Final = 10_000
 class Channel(Generic[T]):
     """Many writers, one reader; unbounded for internal traffic, bounded for external."""
 
-    __slots__ = ("_items", "_waiter", "limit")
+    __slots__ = ("_items", "_nudged", "_waiter", "limit")
 
     def __init__(self, limit: int = DEFAULT_EXTERNAL_LIMIT) -> None:
         self._items: deque[T] = deque()
         self._waiter: asyncio.Future[None] | None = None
+        self._nudged = False
         self.limit = limit
 
     def __len__(self) -> int:
@@ -41,6 +42,14 @@ class Channel(Generic[T]):
     def put(self, item: T) -> None:
         """Appends an item and wakes the reader; never blocks, never drops."""
         self._items.append(item)
+        self._wake()
+
+    def nudge(self) -> None:
+        """Wakes the reader once even though nothing is pending (a timer went off)."""
+        self._nudged = True
+        self._wake()
+
+    def _wake(self) -> None:
         waiter = self._waiter
         if waiter is not None:
             self._waiter = None
@@ -59,7 +68,8 @@ class Channel(Generic[T]):
         return self._items.popleft()
 
     async def wait(self) -> None:
-        """Returns when an item is pending (the reader is cancelled to stop it)."""
-        while not self._items:
+        """Returns when an item is pending or after a nudge (cancel the reader to stop it)."""
+        while not self._items and not self._nudged:
             waiter = self._waiter = asyncio.get_running_loop().create_future()
             await waiter
+        self._nudged = False

@@ -61,6 +61,9 @@ class Layer:
     default_request_timeout: ClassVar[float] = 5.0
     """Simulated seconds a request waits for its reply when no timeout is given."""
 
+    # Timers of wake_after() still to go off; cancelled when the robot stops.
+    _wakes: set[asyncio.TimerHandle] | None = None
+
     # Set by Robot when the stack is connected (thesis ConnectLayers).
     _robot: Robot | None = None
     _level: Level = -1
@@ -160,6 +163,33 @@ class Layer:
         msg.src_layer = self._level
         msg.dst_layer = dst
         msg.corr_id = 0
+
+    # -- timers ----------------------------------------------------------------------
+
+    def wake_after(self, seconds: float) -> None:
+        """Runs ``inner_process()`` again ``seconds`` simulated seconds from now.
+
+        The event-based way to wait: unlike ``await self.clock.sleep()`` in a hook,
+        the layer keeps handling its messages in the meantime. Each call arms one
+        wake-up; those still pending when the robot stops are cancelled.
+        """
+        robot = self._check_live()
+        loop = asyncio.get_running_loop()
+        wakes = self._wakes
+        if wakes is None:
+            wakes = self._wakes = set()
+
+        def wake() -> None:
+            wakes.discard(handle)
+            self._inbox.nudge()
+
+        handle = loop.call_at(robot.clock.loop_deadline(seconds), wake)
+        wakes.add(handle)
+
+    def _cancel_wakes(self) -> None:
+        for handle in self._wakes or ():
+            handle.cancel()
+        self._wakes = None
 
     # -- internal messages -----------------------------------------------------------
 
@@ -334,7 +364,8 @@ class Layer:
         Args:
             robot_id: the robot to ask (same level).
             msg: the request; its ``msg_type`` becomes NEGOTIATION.
-            timeout: simulated seconds; ``default_request_timeout`` when ``None``.
+            timeout: simulated seconds; ``default_request_timeout`` when ``None``;
+                ``math.inf`` waits as long as it takes.
 
         Raises:
             RequestTimeout: no reply in time.

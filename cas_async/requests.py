@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import enum
+import math
 from collections.abc import Callable
 from typing import Final
 
@@ -95,7 +96,7 @@ class PendingRequests:
             peer: the robot whose answer is expected (this robot for internal ones).
             external: whether the answer must come from another robot's same level.
             seconds: the timeout, for the error message.
-            deadline: when it expires, in event-loop time.
+            deadline: when it expires, in event-loop time (``inf``: never).
         """
         deadlines = self._deadlines
         if deadlines is None:
@@ -105,7 +106,8 @@ class PendingRequests:
         whom = f"robot {peer}" if external else f"layer {msg.dst_layer}"
         what = f"{whom} to {type(msg).__name__} #{msg.msg_id}"
         self._waiting[msg.msg_id] = _Waiter(future, peer, external, seconds, what)
-        deadlines.add(msg.msg_id, deadline)
+        if deadline != math.inf:  # an infinite timeout arms no timer
+            deadlines.add(msg.msg_id, deadline)
         return future
 
     def forget(self, msg_id: int) -> None:

@@ -300,6 +300,7 @@ class Robot:
         for layer in self.layers:
             layer._live = False
             layer._requests.close()
+            layer._cancel_wakes()
         self._endpoint.close()
         self._state = RobotState.STOPPED
 

@@ -62,3 +62,26 @@ def test_many_requests_with_mixed_timeouts_each_time_out_at_their_own_deadline()
         return outcomes
 
     assert cas_async.run(main(), virtual=True) == [(t, float(t)) for t in (10, 20, 30, 40, 50)]
+
+
+class Slow(Recorder):
+    """Answers a query after a long simulated time."""
+
+    async def get_intra_msg_reply(self, msg: Message) -> Message | None:
+        await self.clock.sleep(10_000.0)
+        return await super().get_intra_msg_reply(msg)
+
+
+def test_an_infinite_timeout_waits_as_long_as_it_takes_and_arms_no_timer() -> None:
+    async def main() -> tuple[float, int, int]:
+        clock = VirtualClock()
+        asker = Recorder()
+        robot = Robot(1, [asker, Slow()], clock=clock, messages=STACK_MESSAGES)
+        async with robot:
+            pending = asyncio.ensure_future(asker.request_down(Query(4), timeout=float("inf")))
+            await asyncio.sleep(0)
+            armed = len(asker._requests._deadlines._heap)  # type: ignore[union-attr]
+            answer = await pending
+        return clock.now(), answer.value, armed  # type: ignore[attr-defined]
+
+    assert cas_async.run(main(), virtual=True) == (10_000.0, 8, 0)

@@ -1,0 +1,62 @@
+"""wake_after(): a timer that runs inner_process() again without blocking the layer."""
+
+from __future__ import annotations
+
+import asyncio
+
+import cas_async
+from cas_async import MemoryTransport, Robot, Swarm, VirtualClock
+from tests.conftest import settle
+from tests.stacks import STACK_MESSAGES, Query, Recorder
+
+
+class Ticker(Recorder):
+    """Asks to be woken twice; notes when inner_process runs and when messages come."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.runs: list[float] = []
+        self.handled: list[float] = []
+
+    async def inner_process(self) -> None:
+        await super().inner_process()
+        self.runs.append(self.clock.now())
+        if self.inner_calls == 1:
+            self.wake_after(10.0)
+            self.wake_after(25.0)
+
+    async def handle_msg(self, msg: object) -> None:
+        self.handled.append(self.clock.now())
+        await super().handle_msg(msg)  # type: ignore[arg-type]
+
+
+def test_wakes_at_the_times_asked_and_messages_are_not_held_up() -> None:
+    async def main() -> tuple[list[float], list[float]]:
+        clock, transport = VirtualClock(), MemoryTransport()
+        ticker, other = Ticker(), Recorder()
+        robots = [
+            Robot(1, [ticker], clock=clock, transport=transport, messages=STACK_MESSAGES),
+            Robot(2, [other], clock=clock, transport=transport, messages=STACK_MESSAGES),
+        ]
+        async with Swarm(robots):
+            await clock.sleep(3.0)
+            other.send(1, Query(1))  # handled at once, not after the 10 s timer
+            await clock.sleep(30.0)
+        return ticker.runs, ticker.handled
+
+    runs, handled = cas_async.run(main(), virtual=True)
+    assert handled == [3.0]
+    assert runs == [0.0, 3.0, 10.0, 25.0]  # start, after the message, the two timers
+
+
+def test_pending_wakes_are_cancelled_when_the_robot_stops() -> None:
+    async def main() -> int:
+        ticker = Ticker()
+        robot = Robot(1, [ticker], clock=VirtualClock(), messages=STACK_MESSAGES)
+        async with robot:
+            await settle()
+            assert len(ticker._wakes or ()) == 2
+        loop = asyncio.get_running_loop()
+        return sum(1 for handle in loop._scheduled if not handle.cancelled())  # type: ignore[attr-defined]
+
+    assert cas_async.run(main(), virtual=True) == 0
