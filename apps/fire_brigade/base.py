@@ -8,6 +8,7 @@ Each layer keeps its own copy of the state it needs, kept up to date by messages
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from cas_async import Layer, Message
@@ -60,6 +61,10 @@ class Params:
 
 class BrigadeLayer(Layer):
     """The intermediate layer of §5.4: parameters and helpers for every Fire Brigade layer."""
+
+    default_request_timeout = math.inf
+    """Requests here go to the robotic layer, which answers when a physical action is
+    over (a long drive, a hand-over): however long it takes."""
 
     def __init__(self, params: Params) -> None:
         self.params = params

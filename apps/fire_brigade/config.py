@@ -65,7 +65,7 @@ class StrategyConfig:
         1.0, gt=0, doc="seconds a generator waits before asking again when all refused"
     )
     search_growth: float = setting(
-        2.0, ge=1, doc="a generator widens its search radius by this factor per failed round"
+        2.0, gt=1, doc="a generator widens its search radius by this factor per failed round"
     )
 
 

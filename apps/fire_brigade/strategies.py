@@ -112,4 +112,6 @@ def strategy_class(name: str) -> type[Strategy]:
     found = getattr(module, class_name, None)
     if not (isinstance(found, type) and issubclass(found, Strategy)):
         raise ValueError(f"{name!r} is not a subclass of apps.fire_brigade.Strategy")
+    if found.choose is Strategy.choose:
+        raise ValueError(f"{name!r} does not implement choose()")
     return found

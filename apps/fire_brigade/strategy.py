@@ -30,6 +30,9 @@ __all__ = ["Candidate", "SearchView", "Strategy"]
 _ARRIVED = 1e-9
 """Distance below which a carrier stands at its sink."""
 
+_EARLY = 1e-6
+"""Simulated seconds by which a timer may fire ahead of its instant (clock rounding)."""
+
 
 @dataclass(frozen=True, slots=True)
 class Candidate:
@@ -95,8 +98,9 @@ class Strategy(BrigadeLayer):
         self.asked_in = -1  # the msg_id of that request: its answer's corr_id
         self.partners: set[int] = set()  # a Sink may have several at once
         self.stations: set[int] = set()  # robots that answered as Generator or Sink
+        self.came_from = -1  # who handed this robot its bucket
         self.radius = params.range
-        self.waiting_to_retry = False
+        self.retry_at: float | None = None  # when a failed round is tried again
 
     def choose(self, view: SearchView) -> list[int]:
         """The robots to ask, best first (an empty list: carry it, or retry)."""
@@ -106,10 +110,15 @@ class Strategy(BrigadeLayer):
 
     async def inner_process(self) -> None:
         """A round that found nobody and nowhere to go is retried after ``retry_interval``."""
-        while self.waiting_to_retry:  # a retry may fail again at once
-            self.waiting_to_retry = False
-            await self.clock.sleep(self.params.retry_interval)
+        # Also runs after every batch of messages: only act once the retry is due.
+        if self.retry_at is not None and self.clock.now() >= self.retry_at - _EARLY:
+            self.retry_at = None
             await self._search()
+
+    def _retry_later(self) -> None:
+        # A timer, not a sleep: requests keep being answered meanwhile.
+        self.retry_at = self.clock.now() + self.params.retry_interval
+        self.wake_after(self.params.retry_interval)
 
     async def store_intra_msg(self, msg: Message) -> None:
         """From the Goal layer: a bucket to move; from below: a hand-over or a leg done."""
@@ -127,6 +136,7 @@ class Strategy(BrigadeLayer):
             # Hold the bucket from now on, not from the Goal layer's "MoveBucket": a
             # partnership request arriving in between must be refused.
             self.bucket = msg.bucket if msg.has_bucket else -1
+            self.came_from = msg.partner if msg.has_bucket else -1
             self.send_up(msg)
         else:
             self.unexpected(msg, f"unknown status {msg.status!r}")
@@ -154,17 +164,23 @@ class Strategy(BrigadeLayer):
             candidates,
             self.params,
         )
-        self.to_ask = self.choose(view)
+        chosen = self.choose(view)
+        allowed = {candidate.robot for candidate in candidates}
+        self.to_ask = list(dict.fromkeys(r for r in chosen if r in allowed))
+        if len(self.to_ask) < len(chosen):
+            self.log.warning("choose() returned robots that are not candidates: %s", chosen)
         self._ask_next()
 
     def _may_take(self, robot: int) -> bool:
         """Whether ``robot`` could take the bucket: not a known station, unless the sink.
 
-        An immobile robot (a Generator) cannot hand over to a Sink: they cannot meet.
+        An immobile robot (a Generator) cannot hand over to a Sink: they cannot meet;
+        and the bucket does not go back to the robot it came from.
         """
         if robot == self.sink:
             return self.params.mobile
-        return robot not in self.stations
+        # Never straight back: two robots would pass a bucket to and fro forever.
+        return robot not in self.stations and robot != self.came_from
 
     def _carrying(self, speed_now: float) -> SpeedProfile | None:
         if not self.params.mobile:
@@ -196,14 +212,14 @@ class Strategy(BrigadeLayer):
             # world's diagonal, which covers everyone).
             world = math.hypot(*self.params.world)
             self.radius = min(self.radius * self.params.search_growth, world)
-            self.waiting_to_retry = True
+            self._retry_later()
 
     def _carry_a_step(self) -> None:
         gap = distance(self.here, self.sink_at)
         if gap <= _ARRIVED:
             # At the sink and nobody to ask (a strategy that skipped it): without a
             # pause this would search again at the same instant forever.
-            self.waiting_to_retry = True
+            self._retry_later()
             return
         self.searching = False
         step = min(self.params.search_step, gap)
@@ -253,6 +269,8 @@ class Strategy(BrigadeLayer):
         )
 
     def _answer(self, msg: RequestPartner) -> None:
+        if msg.kind != Kind.TRANSPORTER:
+            self.stations.add(msg.robot_id)  # so this robot never asks it in turn
         here = RequestPartner(self.here[0], self.here[1], self.kind)
         if not self._free(msg.kind):
             here.msg_type = MsgType.DENY
