@@ -257,7 +257,11 @@ def _merged(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
 def _validate(path: Path, data: dict[str, Any]) -> Scenario:
     problems: list[tuple[str, str]] = []
     app_path, app = _import_app(data.get("app"), problems, path)
-    run = _section(RunConfig, data.get("run", {}), "run", problems)
+    run_table = data.get("run", {})
+    if isinstance(run_table, dict) and run_table.get("virtual") is True:
+        # Virtual time runs only in memory: that is the transport unless one is named.
+        run_table = {"transport": "memory", **run_table}
+    run = _section(RunConfig, run_table, "run", problems)
     world = _section(WorldConfig, data.get("world", {}), "world", problems)
     config = None
     if app is not None:

@@ -445,3 +445,13 @@ class TestOverrides:
     def test_override_can_fix_what_check_refuses(self, write: WriteScenario) -> None:
         path = write(MINIMAL + "[robots]\ncount = 101\n")
         assert load_scenario(path, ["robots.count=100"]).config.robots.count == 100
+
+
+def test_virtual_time_defaults_to_the_memory_transport(tmp_path: Path) -> None:
+    path = tmp_path / "virtual.toml"
+    path.write_text(
+        'app = "tests.scenario.fake_app"\n[run]\nvirtual = true\n[world]\nwidth = 1.0\nheight = 1.0\n'
+    )
+    assert load_scenario(path).run.transport == "memory"
+    with pytest.raises(ScenarioError, match="run.transport: virtual time needs the memory"):
+        load_scenario(path, ['run.transport="udp"'])
