@@ -450,8 +450,10 @@ class TestOverrides:
 def test_virtual_time_defaults_to_the_memory_transport(tmp_path: Path) -> None:
     path = tmp_path / "virtual.toml"
     path.write_text(
-        'app = "tests.scenario.fake_app"\n[run]\nvirtual = true\n[world]\nwidth = 1.0\nheight = 1.0\n'
+        'app = "tests.scenario.fake_app"\n'
+        "[run]\nvirtual = true\n"
+        "[world]\nwidth = 1.0\nheight = 1.0\n"
     )
     assert load_scenario(path).run.transport == "memory"
-    with pytest.raises(ScenarioError, match="run.transport: virtual time needs the memory"):
+    with pytest.raises(ScenarioError, match=r"run\.transport: virtual time needs the memory"):
         load_scenario(path, ['run.transport="udp"'])
