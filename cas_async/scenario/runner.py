@@ -129,6 +129,10 @@ async def run_scenario(
             )
     except LayerError as exc:  # raised again on the way out when a layer failed
         result.status, result.error = RunStatus.FAILED, str(exc)
+    except BaseException:
+        if progress is not None:
+            progress.close(final=False)  # whatever is printed next starts on a fresh line
+        raise
     _measure(result, mission, swarm, environment, clock.now())
     result.wall_time = wall_clock() - started
     if progress is not None:
