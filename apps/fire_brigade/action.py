@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from cas_async import ConstantSpeed, Decelerating, Message, Middleware
+from cas_async import Message, Middleware
 
 from .base import BrigadeLayer, Params
 from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
@@ -103,7 +103,7 @@ class Action(BrigadeLayer):
         await self.clock.sleep(self.params.handover_time)
         self.middleware.hand_over(bucket, partner)  # the one atomic moment of the exchange
         if self.params.mobile:
-            self.middleware.speed_profile = ConstantSpeed(self.params.speed)
+            self.middleware.speed_profile = self.params.empty()
         return self._done("SwapBucket", bucket)
 
     def _take(self, bucket: int, giver: int) -> CompletionStatus:
@@ -115,6 +115,5 @@ class Action(BrigadeLayer):
         if self.kind is Kind.SINK:
             self.middleware.retire_item(bucket)
         elif self.params.mobile:
-            p = self.params
-            self.middleware.speed_profile = Decelerating(p.speed, p.deceleration, p.min_speed)
+            self.middleware.speed_profile = self.params.carrying()
         return self._done("SwapBucket", bucket)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
-from cas_async import ConstantSpeed, Layer, Pose, Robot, SimulatedMiddleware
+from cas_async import Layer, Pose, Robot, SimulatedMiddleware
 from cas_async.scenario import Mission, ScenarioError, SimulationSetup
 
 from . import messages
@@ -134,7 +134,7 @@ class FireBrigade:
                 robot_id,
                 setup.clock,
                 turn_rate=fleet.turn_rate,
-                speed_profile=ConstantSpeed(fleet.speed),
+                speed_profile=params.empty(),
                 reach=_REACH,
             )
             layers: list[Layer] = [

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cas_async import Layer, Message
+from cas_async import ConstantSpeed, Decelerating, Layer, Message
 
 from .messages import Kind
 
@@ -57,6 +57,19 @@ class Params:
     def mobile(self) -> bool:
         """Only transporters move."""
         return self.kind is Kind.TRANSPORTER
+
+    def empty(self) -> ConstantSpeed:
+        """A transporter's motion without a bucket: full speed."""
+        return ConstantSpeed(self.speed)
+
+    def carrying(self, speed_now: float | None = None) -> Decelerating:
+        """A transporter's motion with a bucket, slowing from ``speed_now`` (default: full).
+
+        The one place fatigue is defined: the Action layer moves by it and the upper
+        layers estimate with it.
+        """
+        start = self.speed if speed_now is None else speed_now
+        return Decelerating(start, self.deceleration, min(self.min_speed, start))
 
 
 class BrigadeLayer(Layer):

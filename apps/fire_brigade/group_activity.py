@@ -10,7 +10,7 @@ answers with that point, and both tell their Task layer (``"Meeting"``). A solo 
 
 from __future__ import annotations
 
-from cas_async import ConstantSpeed, Decelerating, Message, MsgType, SpeedProfile
+from cas_async import ConstantSpeed, Message, MsgType, SpeedProfile
 
 from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import meeting_point
@@ -35,10 +35,7 @@ class GroupActivity(BrigadeLayer):
         """How a robot moving at ``speed`` now will move (``None``: it cannot)."""
         if speed <= 0:
             return None
-        if not carrying:
-            return ConstantSpeed(speed)
-        p = self.params
-        return Decelerating(speed, p.deceleration, min(p.min_speed, speed))
+        return self.params.carrying(speed) if carrying else ConstantSpeed(speed)
 
     async def store_intra_msg(self, msg: Message) -> None:
         """From above: a partnership or a solo leg; from below: their completion."""

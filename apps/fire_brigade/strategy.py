@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cas_async import ConstantSpeed, Decelerating, Message, MsgType, SpeedProfile
+from cas_async import Message, MsgType, SpeedProfile
 
 from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import distance
@@ -70,13 +70,12 @@ class SearchView:
     @property
     def fresh_partner(self) -> SpeedProfile:
         """An empty transporter's profile (it moves at full speed)."""
-        return ConstantSpeed(self.params.speed)
+        return self.params.empty()
 
     @property
     def loaded_partner(self) -> SpeedProfile:
         """A transporter's profile once it takes the bucket (fresh fatigue)."""
-        p = self.params
-        return Decelerating(p.speed, p.deceleration, min(p.min_speed, p.speed))
+        return self.params.carrying()
 
     def sink_in_range(self) -> Candidate | None:
         """The destination, when it is among the candidates."""
@@ -183,10 +182,7 @@ class Strategy(BrigadeLayer):
         return robot not in self.stations and robot != self.came_from
 
     def _carrying(self, speed_now: float) -> SpeedProfile | None:
-        if not self.params.mobile:
-            return None
-        p = self.params
-        return Decelerating(speed_now, p.deceleration, min(p.min_speed, speed_now))
+        return self.params.carrying(speed_now) if self.params.mobile else None
 
     def _ask_next(self) -> None:
         if self.to_ask:

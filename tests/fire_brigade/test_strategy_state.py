@@ -4,26 +4,9 @@ from __future__ import annotations
 
 import cas_async
 from apps.fire_brigade import MESSAGES, TimeStrategy
-from apps.fire_brigade.base import Params
 from apps.fire_brigade.messages import ChangeStatus, Kind, RequestPartner
 from cas_async import Layer, MemoryTransport, Message, MsgType, Robot, Swarm, VirtualClock
-
-
-def _params(kind: Kind) -> Params:
-    return Params(
-        kind=kind,
-        peers=(),
-        world=(10.0, 10.0),
-        speed=3.0,
-        deceleration=0.5,
-        min_speed=0.6,
-        handover_time=0.5,
-        range=5.0,
-        search_step=1.0,
-        retry_interval=1.0,
-        search_growth=2.0,
-        seed=0,
-    )
+from tests.fire_brigade.test_strategies import params
 
 
 class Asker(Layer):
@@ -47,7 +30,7 @@ def test_a_transporter_that_just_received_a_bucket_refuses_partners() -> None:
 
     async def main() -> list[MsgType]:
         transport, clock = MemoryTransport(), VirtualClock()
-        strategy, asker = TimeStrategy(_params(Kind.TRANSPORTER)), Asker()
+        strategy, asker = TimeStrategy(params(peers=())), Asker()
         robots = [
             Robot(1, [strategy], transport=transport, clock=clock, messages=MESSAGES),
             Robot(2, [asker], transport=transport, clock=clock, messages=MESSAGES),
