@@ -186,16 +186,26 @@ async def test_hostile_datagrams_over_real_udp_are_dropped_and_counted(start_rob
         "no_such_layer": _raw_datagram(robot, *header(5, 5), "deep", []),
         "from_own_id": _raw_datagram(robot, *header(0, 0, sender=1), "me", []),
         "stack_mismatch": msgpack.packb([robot.fingerprint ^ 1, *header(0, 0), "x", []]),
+        # Robot 3 is known, but the datagram comes from robot 2's address.
+        "spoofed_sender": _raw_datagram(robot, *header(0, 0, sender=3), "spoof", []),
     }
+    # From an address the robot does not know, claiming a robot it does not know.
+    unknown = _raw_datagram(robot, *header(0, 0, sender=77), "who", [])
     host, port = robot.address
+    transport.directory.add(3, "127.0.0.1", 9)  # never sent to
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        transport.directory.add(2, *sock.getsockname())  # the sender is robot 2
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
         for data in hostile.values():
             if len(data) <= 65_507:
                 sock.sendto(data, (host, port))
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as stranger:
+            stranger.sendto(unknown, (host, port))
         sock.sendto(_raw_datagram(robot, *header(0, 0), "valid", [7]), (host, port))
-    await wait_for(lambda: stack[0].external)
+    await wait_for(lambda: stack[0].external and sum(robot.dropped.values()) == len(hostile))
     expected = {reason: 1 for reason, data in hostile.items() if len(data) <= 65_507}
+    expected["unknown_sender"] = 1
     assert robot.dropped == expected
     assert [m.text for m in stack[0].external] == ["valid"]
 

@@ -50,7 +50,9 @@ async def test_another_robot_cannot_answer_an_internal_request(start_robot) -> N
             return None
 
     stack = [Recorder(), Silent()]
-    robot = await start_robot(1, stack, transport=MemoryTransport())
+    network = MemoryTransport()
+    robot = await start_robot(1, stack, transport=network)
+    await start_robot(2, recorders(2), transport=network)
     asking = asyncio.create_task(stack[0].request_down(Query(1), timeout=5))
     await settle()
     (question,) = stack[1].negotiations
@@ -202,7 +204,7 @@ async def test_a_flood_of_foreign_fingerprints_is_explained_a_few_times_only(
     explained = [r for r in caplog.records if "refusing datagrams" in r.getMessage()]
     assert len(explained) == 16
     assert robot.dropped == {"stack_mismatch": 1000}
-    assert len(robot._mismatches_seen) == 16
+    assert len(robot._reception._mismatches_seen) == 16
     assert len(caplog.records) < 30
 
 

@@ -53,7 +53,7 @@ class RecordingSink:
         self.received: list[bytes] = []
         self.dropped: list[tuple[str, str]] = []
 
-    def datagram_received(self, data: bytes) -> None:
+    def datagram_received(self, data: bytes, sender: int | None = None) -> None:
         self.received.append(data)
 
     def transport_dropped(self, reason: str, detail: str) -> None:

@@ -17,20 +17,29 @@ from typing import Protocol
 
 from .._types import Address, RobotId
 
-__all__ = ["DatagramSink", "Endpoint", "Transport", "drop_socket_error"]
+__all__ = ["DatagramSink", "Endpoint", "LossCounter", "Transport", "drop_socket_error"]
 
 
-class DatagramSink(Protocol):
-    """What an endpoint delivers to: implemented by :class:`~cas_async.robot.Robot`."""
-
-    def datagram_received(self, data: bytes) -> None:
-        """Called with each datagram for this robot, in arrival order."""
+class LossCounter(Protocol):
+    """Anything told about datagrams a transport lost or refused."""
 
     def transport_dropped(self, reason: str, detail: str) -> None:
         """Called when the transport lost or refused something (counted by reason)."""
 
 
-def drop_socket_error(sink: DatagramSink, exc: Exception) -> None:
+class DatagramSink(LossCounter, Protocol):
+    """What an endpoint delivers to: implemented by :class:`~cas_async.robot.Robot`."""
+
+    def datagram_received(self, data: bytes, sender: RobotId | None = None) -> None:
+        """Called with each datagram for this robot, in arrival order.
+
+        ``sender`` is the robot the transport knows the datagram came from (its
+        source address, or an authenticated id), ``None`` when it cannot tell. A
+        datagram whose header claims another robot is a spoof and is refused.
+        """
+
+
+def drop_socket_error(sink: LossCounter, exc: Exception) -> None:
     """Counts a datagram lost to a socket error (counted as ``transport.socket_error``).
 
     A peer the socket cannot reach is a lost datagram, as UDP allows; it must not
@@ -65,6 +74,14 @@ class Endpoint(ABC):
         """The other robots this endpoint knows an address for (broadcast targets)."""
 
     @abstractmethod
+    def knows(self, robot_id: RobotId) -> bool:
+        """Whether this endpoint can send to ``robot_id``.
+
+        A datagram claiming to come from a robot the endpoint cannot answer is
+        refused (``unknown_sender``): a reply to it could only fail.
+        """
+
+    @abstractmethod
     def close(self) -> None:
         """Stops sending and receiving; idempotent."""
 
@@ -74,6 +91,11 @@ class Transport(ABC):
 
     supports_virtual_time: bool = False
     """Whether robots on this transport can run on a virtual clock."""
+
+    authenticated: bool = False
+    """Whether an authenticating wrapper signs and checks every datagram of this
+    transport (set by the wrapper); a UDP transport binding beyond loopback without
+    it warns."""
 
     @abstractmethod
     async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:

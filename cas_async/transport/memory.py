@@ -48,14 +48,17 @@ class MemoryEndpoint(Endpoint):
         target = self._network._endpoints.get(robot_id)
         if target is None:
             raise UnknownRobotError(f"no robot {robot_id} on this MemoryTransport")
-        self._loop.call_soon(target._deliver, data)
+        self._loop.call_soon(target._deliver, data, self.robot_id)
 
-    def _deliver(self, data: bytes) -> None:
+    def _deliver(self, data: bytes, sender: RobotId) -> None:
         # Also after close: the sink (a stopped robot) counts what arrives late.
-        self._sink.datagram_received(data)
+        self._sink.datagram_received(data, sender)
 
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._network._endpoints if rid != self.robot_id]
+
+    def knows(self, robot_id: RobotId) -> bool:
+        return robot_id in self._network._endpoints
 
     def close(self) -> None:
         if not self._closed:

@@ -20,11 +20,11 @@ from __future__ import annotations
 import asyncio
 import socket
 from collections import deque
-from typing import Any, Final
+from typing import Any, Final, Protocol
 
-from .base import DatagramSink, drop_socket_error
+from .base import drop_socket_error
 
-__all__ = ["SocketWire"]
+__all__ = ["Receiver", "SocketWire"]
 
 BATCH: Final = 64
 """Datagrams read per readable event at most, so one busy socket cannot starve the loop."""
@@ -42,13 +42,23 @@ top of what the kernel buffer holds still ride out a burst, and cap the memory h
 _RECV_SIZE: Final = 65_536
 
 
+class Receiver(Protocol):
+    """Where a :class:`SocketWire` delivers: datagrams with their source address."""
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        """One datagram and the address it came from."""
+
+    def transport_dropped(self, reason: str, detail: str) -> None:
+        """A datagram lost here (counted by reason)."""
+
+
 class SocketWire:
     """Sends and receives datagrams on one non-blocking socket."""
 
     __slots__ = ("_backlog", "_loop", "_sink", "_sock")
 
     def __init__(
-        self, loop: asyncio.AbstractEventLoop, sock: socket.socket, sink: DatagramSink
+        self, loop: asyncio.AbstractEventLoop, sock: socket.socket, sink: Receiver
     ) -> None:
         sock.setblocking(False)
         self._loop = loop
@@ -62,16 +72,16 @@ class SocketWire:
         return {"socket": self._sock, "sockname": self._sock.getsockname()}.get(name)
 
     def _read_ready(self) -> None:
-        recv, sink = self._sock.recv, self._sink
+        recvfrom, sink = self._sock.recvfrom, self._sink
         for _ in range(BATCH):
             try:
-                data = recv(_RECV_SIZE)
+                data, addr = recvfrom(_RECV_SIZE)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError as exc:  # e.g. ICMP port unreachable reported on the socket
                 drop_socket_error(sink, exc)
                 return
-            sink.datagram_received(data)
+            sink.datagram_received(data, addr)
 
     def sendto(self, data: bytes, addr: Any) -> None:
         """Sends now, or queues until the socket is writable (never blocks).

@@ -40,5 +40,9 @@ class Unconnected(Endpoint):
         """Raises ``ConfigurationError`` (a broadcast would otherwise do nothing silently)."""
         self._refuse()
 
+    def knows(self, robot_id: RobotId) -> bool:
+        """False: this robot reaches nobody."""
+        return False
+
     def close(self) -> None:
         """Nothing to close."""

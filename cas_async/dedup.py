@@ -1,0 +1,122 @@
+"""Duplicate suppression for external messages, and the replies kept for re-sent requests.
+
+Networks duplicate datagrams, and a requester that got no answer sends its request
+again (``request(..., retries=n)`` re-sends the same message, same ``msg_id``).
+Either way a message must not be handled twice. A robot's message ids only grow
+(they start from the clock's :meth:`~cas_async.clock.Clock.message_id_base`, so a
+restarted robot continues above its previous life), which allows the sliding
+window of IPsec and DTLS anti-replay: per sender, the highest id seen and a
+bitmask of the :data:`WINDOW` ids below it. Memory is constant per sender, and
+delivery out of order within the window is fine. An id older than the window
+cannot be judged and is refused as stale.
+
+A request handled once but re-sent (its reply was lost) must get the same reply
+again without being handled again: :class:`ReplyCache` keeps the encoded replies
+of the latest requests answered, and the robot sends the kept bytes back.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+from ._types import RobotId
+
+__all__ = ["DUPLICATE", "FRESH", "STALE", "WINDOW", "ReplyCache", "SenderWindows"]
+
+WINDOW: Final = 1024
+"""Message ids per sender below its highest that are still told apart."""
+
+FRESH: Final = 0
+"""First sight of this message: handle it."""
+DUPLICATE: Final = 1
+"""Seen before: a network duplicate or a re-sent request."""
+STALE: Final = 2
+"""Older than the window: cannot tell, so refused."""
+
+_MASK: Final = (1 << WINDOW) - 1
+
+
+class _Window:
+    __slots__ = ("heard", "highest", "mask")
+
+    def __init__(self, msg_id: int, heard: float) -> None:
+        self.highest = msg_id
+        self.mask = 1  # bit k: id ``highest - k`` seen
+        self.heard = heard
+
+
+class SenderWindows:
+    """Which message ids each sender has had delivered, and when it was last heard.
+
+    Args:
+        max_senders: senders tracked at most; beyond it the one tracked longest is
+            forgotten (its next message is taken as new), so claimed sender ids
+            cannot grow memory without bound.
+    """
+
+    __slots__ = ("_max_senders", "_windows")
+
+    def __init__(self, max_senders: int = 65_536) -> None:
+        self._windows: dict[RobotId, _Window] = {}
+        self._max_senders = max_senders
+
+    def check(self, sender: RobotId, msg_id: int, now: float) -> int:
+        """Records ``msg_id`` from ``sender`` heard at ``now``: FRESH, DUPLICATE or STALE."""
+        window = self._windows.get(sender)
+        if window is None:
+            windows = self._windows
+            if len(windows) >= self._max_senders:
+                del windows[next(iter(windows))]
+            windows[sender] = _Window(msg_id, now)
+            return FRESH
+        window.heard = now
+        ahead = msg_id - window.highest
+        if ahead > 0:
+            # A jump of a whole window or more (a restarted sender) starts afresh:
+            # shifting by it would build an enormous integer.
+            window.mask = ((window.mask << ahead) | 1) & _MASK if ahead < WINDOW else 1
+            window.highest = msg_id
+            return FRESH
+        if ahead <= -WINDOW:
+            return STALE
+        bit = 1 << -ahead
+        if window.mask & bit:
+            return DUPLICATE
+        window.mask |= bit
+        return FRESH
+
+    def heard(self, sender: RobotId) -> float | None:
+        """When ``sender`` was last heard (the ``now`` of its latest message), or ``None``."""
+        window = self._windows.get(sender)
+        return None if window is None else window.heard
+
+    def __len__(self) -> int:
+        return len(self._windows)
+
+
+class ReplyCache:
+    """The encoded replies to the latest requests answered, by (asker, request id).
+
+    Args:
+        size: replies kept; the oldest goes first.
+    """
+
+    __slots__ = ("_replies", "_size")
+
+    def __init__(self, size: int = 1024) -> None:
+        self._replies: dict[tuple[RobotId, int], bytes] = {}
+        self._size = size
+
+    def keep(self, asker: RobotId, request_id: int, data: bytes) -> None:
+        """Remembers ``data`` as the reply sent to ``asker``'s request ``request_id``."""
+        replies = self._replies
+        replies[(asker, request_id)] = data
+        if len(replies) > self._size:
+            del replies[next(iter(replies))]
+
+    def get(self, asker: RobotId, request_id: int) -> bytes | None:
+        """The reply sent to that request, if still kept."""
+        return self._replies.get((asker, request_id))
+
+    def __len__(self) -> int:
+        return len(self._replies)
