@@ -1,14 +1,20 @@
-"""A layer's inbox: a single-consumer message channel with an overflow policy.
+"""A layer's inbox: a single-consumer message channel with a named overflow policy.
 
 ``asyncio.Queue`` serves many getters and putters; a layer's inbox has exactly one
 reader (the layer's task), so a deque and one waiter future do the same job with a
 fraction of the bookkeeping. The reader drains every pending message in one pass
 (a "batch"), so a burst costs one task wake-up, not one per message.
 
-Overflow policy: internal messages (from neighbouring layers of the same robot) are
-never dropped; external messages are refused with ``False`` once ``limit`` are
-pending, and the caller counts the drop (a flood from the network cannot grow a
-robot's memory without bound).
+Overflow policy, at ``limit`` pending messages (the inbox is *full*):
+
+* external messages (from the network) are refused by :meth:`Channel.offer`, and
+  the robot counts the drop as ``queue_full``: a flood from other robots cannot
+  grow a robot's memory without bound;
+* internal messages (from this robot's own layers) are never dropped: :meth:`put`
+  always appends and reports that the inbox is full, and the sending layer then
+  waits in its loop (:meth:`room`) until the inbox has drained to half the limit
+  before it handles its next message. That is back-pressure: a fast producer
+  slows to its consumer's pace instead of piling messages up.
 """
 
 from __future__ import annotations
@@ -17,39 +23,49 @@ import asyncio
 from collections import deque
 from typing import Final, Generic, TypeVar
 
-__all__ = ["DEFAULT_EXTERNAL_LIMIT", "Channel"]
+__all__ = ["DEFAULT_QUEUE_LIMIT", "Channel"]
 
 T = TypeVar("T")
 
-DEFAULT_EXTERNAL_LIMIT: Final = 10_000
-"""Pending messages above which external messages are dropped."""
+DEFAULT_QUEUE_LIMIT: Final = 10_000
+"""Pending messages at which an inbox is full."""
 
 
 class Channel(Generic[T]):
-    """Many writers, one reader; unbounded for internal traffic, bounded for external."""
+    """Many writers, one reader, bounded by ``limit`` (see the module docs)."""
 
-    __slots__ = ("_items", "_nudged", "_waiter", "limit")
+    __slots__ = ("_items", "_low", "_nudged", "_room_waiters", "_waiter", "limit")
 
-    def __init__(self, limit: int = DEFAULT_EXTERNAL_LIMIT) -> None:
+    def __init__(self, limit: int = DEFAULT_QUEUE_LIMIT) -> None:
         self._items: deque[T] = deque()
         self._waiter: asyncio.Future[None] | None = None
+        self._room_waiters: list[asyncio.Future[None]] = []
         self._nudged = False
         self.limit = limit
+        self._low = limit // 2  # back-pressure lifts here: not at every single pop
 
     def __len__(self) -> int:
         return len(self._items)
 
-    def put(self, item: T) -> None:
-        """Appends an item and wakes the reader; never blocks, never drops."""
-        self._items.append(item)
-        self._wake()
+    @property
+    def full(self) -> bool:
+        """Whether ``limit`` messages or more are pending."""
+        return len(self._items) >= self.limit
+
+    def put(self, item: T) -> bool:
+        """Appends an item and wakes the reader; never drops. Returns whether it is full now."""
+        items = self._items
+        items.append(item)
+        waiter = self._waiter
+        if waiter is not None:
+            self._waiter = None
+            if not waiter.done():
+                waiter.set_result(None)
+        return len(items) >= self.limit
 
     def nudge(self) -> None:
         """Wakes the reader once even though nothing is pending (a timer went off)."""
         self._nudged = True
-        self._wake()
-
-    def _wake(self) -> None:
         waiter = self._waiter
         if waiter is not None:
             self._waiter = None
@@ -57,7 +73,7 @@ class Channel(Generic[T]):
                 waiter.set_result(None)
 
     def offer(self, item: T) -> bool:
-        """Appends an item unless ``limit`` items are pending; returns whether it did."""
+        """Appends an item unless the channel is full; returns whether it did."""
         if len(self._items) >= self.limit:
             return False
         self.put(item)
@@ -65,7 +81,14 @@ class Channel(Generic[T]):
 
     def pop(self) -> T:
         """The oldest item; the caller checks ``len()`` first (``IndexError`` if empty)."""
-        return self._items.popleft()
+        items = self._items
+        item = items.popleft()
+        if self._room_waiters and len(items) <= self._low:
+            waiters, self._room_waiters = self._room_waiters, []
+            for waiter in waiters:
+                if not waiter.done():
+                    waiter.set_result(None)
+        return item
 
     async def wait(self) -> None:
         """Returns when an item is pending or after a nudge (cancel the reader to stop it)."""
@@ -73,3 +96,10 @@ class Channel(Generic[T]):
             waiter = self._waiter = asyncio.get_running_loop().create_future()
             await waiter
         self._nudged = False
+
+    async def room(self) -> None:
+        """Returns once at most half the limit is pending (at once if so already)."""
+        while len(self._items) > self._low:
+            waiter = asyncio.get_running_loop().create_future()
+            self._room_waiters.append(waiter)
+            await waiter

@@ -15,6 +15,7 @@ This is the only module that reads time: the rest of the package asks a clock.
 from __future__ import annotations
 
 import asyncio
+import time
 from abc import ABC, abstractmethod
 from typing import final
 
@@ -96,6 +97,23 @@ class Clock(ABC):
         loop = self._loop or asyncio.get_running_loop()
         return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second()
 
+    def at_loop_time(self, loop_time: float) -> float:
+        """The simulated time at event-loop time ``loop_time`` (for times the loop recorded)."""
+        if self._origin is None:
+            self.start()
+        assert self._origin is not None
+        return (loop_time - self._origin) / self._loop_time_per_sim_second()
+
+    def message_id_base(self) -> int:
+        """The first message id of a robot starting now: larger than any id it used before.
+
+        Message ids only grow, also across restarts of a robot, so receivers can
+        tell a repeated message from a new one. In real time the base is the wall
+        clock in microseconds (a robot sends far fewer than a million messages a
+        second, so a restarted robot starts above its previous ids).
+        """
+        return time.time_ns() // 1000
+
     def timeout(self, seconds: float | None) -> asyncio.Timeout:
         """An ``async with`` block that raises ``TimeoutError`` after ``seconds`` simulated."""
         if seconds is None:
@@ -150,6 +168,11 @@ class VirtualClock(Clock):
 
     def _loop_time_per_sim_second(self) -> float:
         return 1.0
+
+    def message_id_base(self) -> int:
+        """Virtual microseconds since the loop began, plus one: reproducible, and growing."""
+        loop = self._loop or asyncio.get_running_loop()
+        return int(loop.time() * 1_000_000) + 1
 
     def check_loop(self, loop: asyncio.AbstractEventLoop) -> None:
         """Refuses loops whose clock is real."""

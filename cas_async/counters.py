@@ -7,7 +7,14 @@ from typing import Any
 
 __all__ = ["LayerCounters"]
 
-_TOTALS = ("sent_internal", "sent_external", "received_internal", "received_external", "forwarded")
+_TOTALS = (
+    "sent_internal",
+    "sent_external",
+    "received_internal",
+    "received_external",
+    "forwarded",
+    "restarts",
+)
 
 
 @dataclass(slots=True)
@@ -24,6 +31,8 @@ class LayerCounters:
     """External messages delivered to this layer's hooks (or to a waiting request)."""
     forwarded: int = 0
     """Internal messages passed through this layer to a farther one."""
+    restarts: int = 0
+    """Times this layer was restarted after raising (see ``Robot(restart=...)``)."""
     internal_by_type: dict[type[Any], int] = field(default_factory=dict)
     """``sent_internal`` split by message class."""
     external_by_type: dict[type[Any], int] = field(default_factory=dict)

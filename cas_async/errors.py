@@ -110,7 +110,17 @@ class RuleViolation(CasError, ValueError):
 
 
 class RequestTimeout(CasError, TimeoutError):
-    """A request (NEGOTIATION) got no reply within its timeout."""
+    """A request (NEGOTIATION) got no reply within its timeout.
+
+    Attributes:
+        peer: the robot asked (``None`` for a request to a layer of the same robot).
+        attempts: how many times the request was sent.
+    """
+
+    def __init__(self, message: str, peer: int | None = None, attempts: int = 1) -> None:
+        super().__init__(message)
+        self.peer = peer
+        self.attempts = attempts
 
 
 class LayerError(CasError):

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import copy
+import math
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, ClassVar, Final
 
@@ -31,7 +32,7 @@ from ._types import Level, RobotId
 from .channel import Channel
 from .clock import Clock
 from .counters import LayerCounters
-from .errors import RobotStateError, RuleViolation, UnknownRobotError
+from .errors import RequestTimeout, RobotStateError, RuleViolation, UnknownRobotError
 from .logs import PrefixLogger
 from .message import Message, MsgType
 from .requests import PendingRequests, ReplyOutcome
@@ -71,6 +72,11 @@ class Layer:
     _below: Layer | None = None
     _live: bool = False
 
+    # Back-pressure: a layer whose inbox this one filled, and the layer this one
+    # is waiting on (to see a cycle of layers waiting on each other).
+    _congested: Layer | None = None
+    _waiting_on: Layer | None = None
+
     # -- hooks ---------------------------------------------------------------------
 
     async def inner_process(self) -> None:
@@ -89,6 +95,12 @@ class Layer:
     async def get_intra_msg_reply(self, msg: Message) -> Message | None:
         """The automatic reply to an internal NEGOTIATION (``None``: no reply)."""
         return None
+
+    async def on_restart(self, error: Exception) -> None:
+        """Called before the layer runs again after ``error``, under a restart policy.
+
+        Reset here whatever the failure left half done; see :mod:`cas_async.supervision`.
+        """
 
     def termination_condition(self) -> bool:
         """True when this layer is done; ``run()`` returns once every layer is.
@@ -206,7 +218,8 @@ class Layer:
         counters.sent_internal += 1
         by_type = counters.internal_by_type
         by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-        above._inbox.put(msg)
+        if above._inbox.put(msg):
+            self._congested = above
 
     def send_down(self, msg: Message) -> None:
         """Sends an internal message to the layer directly below."""
@@ -221,7 +234,8 @@ class Layer:
         counters.sent_internal += 1
         by_type = counters.internal_by_type
         by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-        below._inbox.put(msg)
+        if below._inbox.put(msg):
+            self._congested = below
 
     def send_to_layer(self, level: Level, msg: Message) -> None:
         """Sends an internal message to any other layer of this robot.
@@ -270,7 +284,8 @@ class Layer:
                 if outcome is _DELIVERED:
                     layer._counters.received_internal += 1
                 return
-        layer._inbox.put(msg)
+        if layer._inbox.put(msg):
+            self._congested = layer
 
     # -- external messages -----------------------------------------------------------
 
@@ -333,7 +348,7 @@ class Layer:
             response = _owned(response)
             self._stamp(robot, response, self._level)
             response.corr_id = asked_id
-            robot._send_external(asker, response)
+            robot._send_reply(asker, asked_id, response)
             counters = self._counters
             counters.sent_external += 1
             by_type = counters.external_by_type
@@ -355,39 +370,63 @@ class Layer:
     # -- requests --------------------------------------------------------------------
 
     async def request(
-        self, robot_id: RobotId, msg: Message, *, timeout: float | None = None
+        self,
+        robot_id: RobotId,
+        msg: Message,
+        *,
+        timeout: float | None = None,
+        retries: int = 0,
     ) -> Message:
         """Sends a NEGOTIATION to robot ``robot_id`` and returns its reply.
 
         The other robot answers from ``handle_msg`` with ``self.reply(msg, response)``.
+        With ``retries``, a request left unanswered for ``timeout`` is sent again,
+        as the same message: the other robot handles it once, and answers a
+        repetition with the reply it already sent (which may have been lost).
 
         Args:
             robot_id: the robot to ask (same level).
             msg: the request; its ``msg_type`` becomes NEGOTIATION.
-            timeout: simulated seconds; ``default_request_timeout`` when ``None``;
-                ``math.inf`` waits as long as it takes.
+            timeout: simulated seconds per attempt; ``default_request_timeout``
+                when ``None``; ``math.inf`` waits as long as it takes.
+            retries: how many times to send it again after a timeout; the whole
+                request gives up after ``(retries + 1) * timeout``.
 
         Raises:
-            RequestTimeout: no reply in time.
+            RequestTimeout: no reply to any attempt (the partner went silent);
+                ``attempts`` and ``peer`` say how often and whom it asked.
             RuleViolation: ``robot_id`` is this robot (the drop is counted too).
             RobotStateError: the robot stopped while waiting.
+            ValueError: ``retries`` is negative.
         """
         robot = self._check_live()
         if robot_id == robot.robot_id:
             robot._violation("to_own_robot", self, msg)
             raise RuleViolation(f"{self._log.prefix}request() to its own robot {robot_id}")
+        if retries < 0:
+            raise ValueError(f"retries must be >= 0, got {retries}")
         msg.msg_type = _NEGOTIATION
         self._stamp(robot, msg, self._level)
-        reply = self._expect(robot, msg, robot_id, True, timeout)
-        try:
-            robot._send_external(robot_id, msg)
-            counters = self._counters
-            counters.sent_external += 1
-            by_type = counters.external_by_type
-            by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-            return await reply
-        finally:
-            self._requests.forget(msg.msg_id)
+        data = robot._codec.encode(msg)  # type: ignore[union-attr]
+        counters = self._counters
+        by_type = counters.external_by_type
+        attempt = 0
+        while True:
+            reply = self._expect(robot, msg, robot_id, True, timeout)
+            try:
+                robot._endpoint.send(robot_id, data)
+                counters.sent_external += 1
+                by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
+                return await reply
+            except RequestTimeout as exc:
+                attempt += 1
+                if attempt > retries:
+                    if retries:
+                        exc.args = (f"{exc} ({attempt} attempts)",)
+                    exc.peer, exc.attempts = robot_id, attempt
+                    raise
+            finally:
+                self._requests.forget(msg.msg_id)
 
     async def request_down(self, msg: Message, *, timeout: float | None = None) -> Message:
         """Sends a NEGOTIATION to the layer below and returns its automatic reply."""
@@ -438,6 +477,16 @@ class Layer:
         deadline = robot.clock.loop_deadline(seconds)
         return self._requests.expect(msg, peer, external, seconds, deadline)
 
+    def silent_for(self, robot_id: RobotId) -> float:
+        """Simulated seconds since a message from robot ``robot_id`` was last delivered.
+
+        ``math.inf`` when none ever was. A partner whose silence outlasts what the
+        protocol expects (a meeting that should have happened) has gone away.
+        """
+        robot = self.robot
+        heard = robot.last_heard(robot_id)
+        return math.inf if heard is None else robot.clock.now() - heard
+
     # -- delivery from the robot -----------------------------------------------------
 
     def _accept_external(self, msg: Message) -> None:
@@ -463,6 +512,8 @@ class Layer:
         has_inner = type(self).inner_process is not Layer.inner_process
         has_condition = self._has_termination_condition()
         await self.inner_process()
+        if self._congested is not None:
+            await self._wait_for_room()
         if has_condition:
             robot._layer_may_be_done(self)
         while True:
@@ -473,15 +524,40 @@ class Layer:
                 if msg.src_layer == msg.dst_layer:
                     counters.received_external += 1
                     await self.handle_msg(msg)
-                    continue
-                counters.received_internal += 1
-                if msg.msg_type == _NEGOTIATION and not msg.corr_id:
-                    response = await self.get_intra_msg_reply(msg)
-                    if response is not None:
-                        self._reply_internal(robot, msg, response)
                 else:
-                    await self.store_intra_msg(msg)
+                    counters.received_internal += 1
+                    if msg.msg_type == _NEGOTIATION and not msg.corr_id:
+                        response = await self.get_intra_msg_reply(msg)
+                        if response is not None:
+                            self._reply_internal(robot, msg, response)
+                    else:
+                        await self.store_intra_msg(msg)
+                if self._congested is not None:
+                    await self._wait_for_room()
             if has_inner:
                 await self.inner_process()
+                if self._congested is not None:
+                    await self._wait_for_room()
             if has_condition:
                 robot._layer_may_be_done(self)
+
+    async def _wait_for_room(self) -> None:
+        """Back-pressure: waits while a layer this one filled drains to half its limit.
+
+        A layer never waits on one that waits, along a chain, on it: two layers
+        flooding each other would wait forever. One of them goes on instead, which
+        drains the other's sender.
+        """
+        target = self._congested
+        self._congested = None
+        assert target is not None
+        along: Layer | None = target
+        while along is not None:
+            if along is self:
+                return
+            along = along._waiting_on
+        self._waiting_on = target
+        try:
+            await target._inbox.room()
+        finally:
+            self._waiting_on = None

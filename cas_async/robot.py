@@ -22,32 +22,29 @@ import enum
 import itertools
 from collections.abc import Iterable, Sequence
 from types import TracebackType
-from typing import Final, final
+from typing import final
 
 from ._types import Address, RobotId
-from .channel import DEFAULT_EXTERNAL_LIMIT
+from .channel import DEFAULT_QUEUE_LIMIT
 from .clock import Clock, ScaledClock
 from .codec import DEFAULT_MAX_DATAGRAM, MIN_DATAGRAM, Codec
 from .counters import LayerCounters
 from .errors import (
     ConfigurationError,
-    DecodeError,
     LayerError,
     RobotStateError,
-    StackMismatchError,
     UnknownRobotError,
 )
-from .fingerprint import describe_fingerprint, stack_fingerprint
+from .fingerprint import stack_fingerprint
 from .layer import Layer
 from .logs import DropLog, logger_for
 from .message import Message, specs_for
+from .reception import Reception
+from .supervision import RestartPolicy, run_layer
 from .transport.base import Endpoint, Transport
 from .transport.unconnected import Unconnected
 
 __all__ = ["Robot", "RobotState"]
-
-_MISMATCHES_EXPLAINED: Final = 16
-"""Foreign stacks whose first datagram is explained in the log; the rest are counted."""
 
 
 class RobotState(enum.Enum):
@@ -75,8 +72,12 @@ class Robot:
             process holds messages of several applications (e.g. a test session).
         max_datagram_size: largest datagram encoded or accepted (also capped by the
             transport's own limit).
-        queue_limit: pending external messages per layer above which new ones are
-            dropped and counted (internal messages are never dropped).
+        queue_limit: pending messages per layer at which the queue is full: external
+            messages are then dropped and counted, and a layer sending internal
+            messages to it waits until it has drained to half (internal messages
+            are never dropped).
+        restart: restart a layer that raises, within these limits, instead of
+            stopping the robot (see :mod:`cas_async.supervision`).
     """
 
     def __init__(
@@ -88,7 +89,8 @@ class Robot:
         clock: Clock | None = None,
         messages: Iterable[type[Message]] | None = None,
         max_datagram_size: int = DEFAULT_MAX_DATAGRAM,
-        queue_limit: int = DEFAULT_EXTERNAL_LIMIT,
+        queue_limit: int = DEFAULT_QUEUE_LIMIT,
+        restart: RestartPolicy | None = None,
     ) -> None:
         if type(robot_id) is not int:
             raise ConfigurationError(f"robot_id must be an int, got {robot_id!r}")
@@ -104,12 +106,12 @@ class Robot:
         self.transport = transport
         self.clock: Clock = clock if clock is not None else ScaledClock(1.0)
         self.queue_limit = queue_limit
+        self.restart = restart
         self._messages = None if messages is None else tuple(messages)
         self._max_datagram_size = max_datagram_size
         self._ids = itertools.count(1)
         self._log = logger_for(robot_id)
         self._drops = DropLog(self._log)
-        self._mismatches_seen: set[int] = set()
         self._state = RobotState.CREATED
         self._endpoint: Endpoint = Unconnected(robot_id)
         self._codec: Codec | None = None
@@ -119,6 +121,7 @@ class Robot:
         self._failure: BaseException | None = None
         self._error_reported = False
         self._connect_layers()
+        self._reception = Reception(self)
         self._judges = [layer for layer in self.layers if layer._has_termination_condition()]
 
     def _connect_layers(self) -> None:
@@ -164,12 +167,16 @@ class Robot:
         return dict(self._drops.counts)
 
     def counters(self) -> dict[str, int]:
-        """Message counters summed over the layers, plus ``dropped.<reason>``."""
+        """Message counters summed over the layers, ``replies_resent`` and ``dropped.<reason>``.
+
+        ``replies_resent`` counts kept replies sent again to a repeated request.
+        """
         total = LayerCounters()
         for layer in self.layers:
             for name, value in layer.counters.as_dict().items():
                 setattr(total, name, getattr(total, name) + value)
         counts = total.as_dict()
+        counts["replies_resent"] = self._reception.replies_resent
         counts.update({f"dropped.{reason}": n for reason, n in sorted(self._drops.counts.items())})
         return counts
 
@@ -226,14 +233,18 @@ class Robot:
             )
         specs = specs_for(self._messages)
         fingerprint = stack_fingerprint(len(self.layers), specs)
+        # Ids only grow, also across restarts of this robot: receivers tell a
+        # re-sent or duplicated message from a new one by (robot id, message id).
+        self._ids = itertools.count(self.clock.message_id_base())
         if self.transport is not None:
-            self._endpoint = await self.transport.open(self.robot_id, self)
+            self._endpoint = await self.transport.open(self.robot_id, self._reception)
         limit = min(self._max_datagram_size, self._endpoint.max_datagram_size)
         try:
             self._codec = Codec(specs, fingerprint, limit)
         except BaseException:
             self._close()  # the socket must not outlive a robot that never started
             raise
+        self._reception.attach(self._codec, self._endpoint, loop.time)
 
     def _start(self) -> None:
         """Second half of starting: starts the clock and one task per layer."""
@@ -242,6 +253,7 @@ class Robot:
         self._finished = loop.create_future()
         self._stop_requested = asyncio.Event()
         self._state = RobotState.RUNNING
+        self._reception.running = True
         for layer in self.layers:
             layer._live = True
         self._supervisor = loop.create_task(
@@ -297,6 +309,7 @@ class Robot:
     def _close(self) -> None:
         if self._state is RobotState.STOPPED:
             return
+        self._reception.running = False
         for layer in self.layers:
             layer._live = False
             layer._requests.close()
@@ -309,7 +322,7 @@ class Robot:
             async with asyncio.TaskGroup() as group:
                 tasks = [
                     group.create_task(
-                        self._run_layer(layer),
+                        run_layer(self, layer, self.restart),
                         name=f"cas_async {layer.log.prefix.rstrip(': ')}",
                     )
                     for layer in self.layers
@@ -326,21 +339,6 @@ class Robot:
             # shutdown) must still surface when the robot's block is left.
             self._failure = first
             self._finish(first)
-
-    async def _run_layer(self, layer: Layer) -> None:
-        try:
-            await layer._run()
-        except asyncio.CancelledError as exc:
-            task = asyncio.current_task()
-            if task is not None and task.cancelling():
-                raise  # the robot is stopping (or a sibling failed)
-            # Nobody cancelled this task: an await inside the layer was cancelled (say,
-            # a driver's future). The layer is dead; the robot must not run on without it.
-            layer.log.error("failed: an await was cancelled from outside the robot")
-            raise LayerError(self.robot_id, layer._level, type(layer).__name__, exc) from exc
-        except Exception as exc:
-            layer.log.error("failed: %s: %s", type(exc).__name__, exc)
-            raise LayerError(self.robot_id, layer._level, type(layer).__name__, exc) from exc
 
     def _finish(self, error: BaseException | None) -> None:
         finished = self._finished
@@ -411,6 +409,22 @@ class Robot:
     def _send_external(self, robot_id: RobotId, msg: Message) -> None:
         self._endpoint.send(robot_id, self._codec.encode(msg))  # type: ignore[union-attr]
 
+    def _send_reply(self, asker: RobotId, request_id: int, response: Message) -> None:
+        """Sends an external reply and keeps it, for a repetition of the request."""
+        data = self._codec.encode(response)  # type: ignore[union-attr]
+        reception = self._reception
+        reception.replies.keep(asker, request_id, data)
+        reception.send_reply(asker, data)
+
+    def last_heard(self, robot_id: RobotId) -> float | None:
+        """Simulated time of the latest message delivered from ``robot_id``, or ``None``.
+
+        Every message accepted from it counts (a duplicate too), so a partner that
+        goes quiet shows as a growing ``clock.now() - last_heard(partner)``.
+        """
+        heard = self._reception.senders.heard(robot_id)
+        return None if heard is None else self.clock.at_loop_time(heard)
+
     def _broadcast(
         self, msg: Message, robots: Iterable[RobotId] | None
     ) -> tuple[int, list[RobotId]]:
@@ -428,57 +442,15 @@ class Robot:
                 sent += 1
         return sent, unknown
 
-    # -- DatagramSink: what the endpoint calls ------------------------------------------
+    # -- DatagramSink: the transport delivers to the Reception -------------------------
 
-    def datagram_received(self, data: bytes) -> None:
-        """Decodes, checks and routes one datagram; anything wrong is dropped and counted."""
-        if self._state is not RobotState.RUNNING:
-            self._drops.drop("not_running", f"datagram of {len(data)} bytes after stop")
-            return
-        try:
-            msg = self._codec.decode(data)  # type: ignore[union-attr]
-        except StackMismatchError as exc:
-            self._refuse_stack(exc)
-            return
-        except DecodeError as exc:
-            self._drops.drop(f"decode.{exc.reason}", str(exc))
-            return
-        level = msg.dst_layer
-        if msg.src_layer != level:
-            self._drop(
-                "cross_level", f"external {msg!r}: external messages connect same levels only"
-            )
-        elif not 0 <= level < len(self.layers):
-            self._drop(
-                "no_such_layer", f"external {msg!r}: this robot has {len(self.layers)} layers"
-            )
-        elif msg.robot_id == self.robot_id:
-            self._drop("from_own_id", f"external {msg!r} claims to come from this robot")
-        else:
-            self.layers[level]._accept_external(msg)
+    def datagram_received(self, data: bytes, sender: RobotId | None = None) -> None:
+        """Handles one datagram as if the transport had delivered it (see :class:`Reception`)."""
+        self._reception.datagram_received(data, sender)
 
     def transport_dropped(self, reason: str, detail: str) -> None:
         """Counts what the transport lost or refused."""
-        self._drops.drop(f"transport.{reason}", detail)
-
-    def _refuse_stack(self, exc: StackMismatchError) -> None:
-        # Explained once per foreign stack, for the first few stacks only: random
-        # datagrams carry random fingerprints and must not fill the log or memory.
-        seen = self._mismatches_seen
-        explain = exc.theirs not in seen and len(seen) < _MISMATCHES_EXPLAINED
-        self._drops.drop("stack_mismatch", str(exc), log=not explain)
-        if explain:
-            self._mismatches_seen.add(exc.theirs)
-            self._log.error(
-                "refusing datagrams from robot %s: its stack (%s) differs from ours (%s). "
-                "Robots that exchange messages must run identical stacks: the same number of "
-                "layers and the same registered messages (import the same message modules, or "
-                "pass the same messages=[...] to every Robot). "
-                "Further mismatches are counted and logged sparsely.",
-                exc.sender,
-                describe_fingerprint(exc.theirs),
-                describe_fingerprint(exc.ours),
-            )
+        self._reception.transport_dropped(reason, detail)
 
     def _drop(self, reason: str, detail: str) -> None:
         self._drops.drop(reason, detail)
