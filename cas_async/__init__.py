@@ -49,10 +49,14 @@ from .sim import (
     closing_time,
     normalize_angle,
 )
+from .supervision import RestartPolicy
 from .swarm import Swarm
 from .transport import (
     DatagramSink,
     Endpoint,
+    Faults,
+    FaultyTransport,
+    LossCounter,
     MemoryTransport,
     Transport,
     UdpDirectory,
@@ -76,6 +80,8 @@ __all__ = [
     "EncodeError",
     "Endpoint",
     "Environment",
+    "Faults",
+    "FaultyTransport",
     "ItemEvent",
     "ItemEventKind",
     "ItemId",
@@ -84,6 +90,7 @@ __all__ = [
     "LayerCounters",
     "LayerError",
     "Level",
+    "LossCounter",
     "MemoryTransport",
     "Message",
     "MessageDefinitionError",
@@ -96,6 +103,7 @@ __all__ = [
     "Pose",
     "Positions",
     "RequestTimeout",
+    "RestartPolicy",
     "Robot",
     "RobotId",
     "RobotState",

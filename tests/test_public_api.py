@@ -41,7 +41,7 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "PrefixLogger",
         "logger_for",
         "Channel",
-        "DEFAULT_EXTERNAL_LIMIT",
+        "DEFAULT_QUEUE_LIMIT",
         "MAX_UDP_PAYLOAD",
         "SocketWire",
         "HEADER_LEN",
@@ -55,6 +55,15 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "PendingRequests",
         "Deadlines",
         "undispatchable",
+        "Reception",
+        "SenderWindows",
+        "ReplyCache",
+        "WINDOW",
+        "FRESH",
+        "DUPLICATE",
+        "STALE",
+        "run_layer",
+        "Receiver",
     }
     exported = set(cas_async.__all__)
     # Public subpackages with an API of their own (for application authors).

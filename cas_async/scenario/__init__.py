@@ -13,6 +13,7 @@
 from .app import Mission, SimulationApp, SimulationSetup
 from .config import ScenarioError, from_toml, setting
 from .loader import (
+    FaultsConfig,
     RunConfig,
     Scenario,
     WorldConfig,
@@ -28,6 +29,7 @@ from .runner import run_scenario
 from .trace import Trace
 
 __all__ = [
+    "FaultsConfig",
     "Mission",
     "Progress",
     "RunConfig",

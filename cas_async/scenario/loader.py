@@ -12,6 +12,10 @@ A scenario is a TOML file::
     width = 200.0
     height = 100.0
 
+    [faults]                    # optional: a lossy wire between robots (FaultsConfig)
+    loss = 0.1
+    delay = [0.0, 0.2]
+
     [robots]                    # every other key belongs to the application
     count = 40
 
@@ -21,7 +25,7 @@ table (arrays and values are replaced, not merged). Variants of a scenario are
 then a few lines each.
 
 :func:`load_scenario` reads it, applies ``--set key=value`` overrides, imports
-the application, validates ``[run]``, ``[world]`` and the application's keys
+the application, validates ``[run]``, ``[world]``, ``[faults]`` and the application's keys
 (into ``app.config_type``, see :mod:`~cas_async.scenario.config`), then lets
 the application check what needs several keys at once. Every problem found is
 reported in one :class:`~cas_async.scenario.config.ScenarioError` naming the file.
@@ -42,10 +46,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, Literal, cast
 
+from ..transport.faulty import Faults
 from .app import SimulationApp
 from .config import ScenarioError, _show, from_toml, setting
 
 __all__ = [
+    "FaultsConfig",
     "RunConfig",
     "Scenario",
     "WorldConfig",
@@ -54,7 +60,7 @@ __all__ = [
     "parse_override",
 ]
 
-_RESERVED: Final = frozenset({"app", "run", "world"})
+_RESERVED: Final = frozenset({"app", "faults", "run", "world"})
 _MISSING: Final = object()
 _APP_MEMBERS: Final = ("name", "item_name", "config_type", "check", "build")
 _IMPORT_PATH: Final = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?")
@@ -99,6 +105,39 @@ class WorldConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class FaultsConfig:
+    """A lossy wire between the robots: the optional ``[faults]`` table.
+
+    Every datagram a robot sends meets these faults (see
+    :class:`~cas_async.transport.faulty.FaultyTransport`); all zero, the default,
+    leaves the transport as it is.
+
+    Attributes:
+        loss: probability that a datagram is lost.
+        duplicate: probability that a datagram is delivered twice.
+        reorder: probability that a datagram is held back so later ones overtake it.
+        delay: ``[min, max]`` extra latency, simulated seconds, drawn uniformly.
+        seed: seed of the faults' random generator; the run's seed when absent.
+    """
+
+    loss: float = setting(0.0, ge=0, le=1, doc="probability a datagram is lost")
+    duplicate: float = setting(0.0, ge=0, le=1, doc="probability a datagram arrives twice")
+    reorder: float = setting(0.0, ge=0, le=1, doc="probability a datagram is overtaken")
+    delay: tuple[float, float] = setting(
+        (0.0, 0.0), ge=0, doc="[min, max] extra latency, simulated seconds"
+    )
+    seed: int | None = setting(None, ge=0, doc="seed of the faults (default: the run's seed)")
+
+    def as_faults(self) -> Faults:
+        """The :class:`~cas_async.transport.faulty.Faults` these settings describe.
+
+        Raises:
+            ValueError: ``delay``'s min is above its max (the loader reports it first).
+        """
+        return Faults(self.loss, self.duplicate, self.reorder, self.delay)
+
+
+@dataclass(frozen=True, slots=True)
 class Scenario:
     """A loaded, valid scenario.
 
@@ -111,6 +150,7 @@ class Scenario:
         config: the application's keys, an instance of ``app.config_type``.
         data: the file's TOML data after overrides (plain dicts and lists),
             to record with the results.
+        faults: the ``[faults]`` table (no faults when absent).
     """
 
     path: Path
@@ -120,6 +160,7 @@ class Scenario:
     world: WorldConfig
     config: Any
     data: dict[str, Any]
+    faults: FaultsConfig = FaultsConfig()
 
 
 def load_scenario(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> Scenario:
@@ -263,6 +304,11 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
         run_table = {"transport": "memory", **run_table}
     run = _section(RunConfig, run_table, "run", problems)
     world = _section(WorldConfig, data.get("world", {}), "world", problems)
+    faults = _section(FaultsConfig, data.get("faults", {}), "faults", problems)
+    if faults is not None and faults.delay[0] > faults.delay[1]:
+        problems.append(
+            ("faults.delay", f"expected [min, max] with min <= max, got {_show(faults.delay)}")
+        )
     config = None
     if app is not None:
         config = _section(app.config_type, data, "", problems, others=_RESERVED)
@@ -274,10 +320,10 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
                 "or run on scaled real time (virtual = false)",
             )
         )
-    if problems or app is None or run is None or world is None:
+    if problems or app is None or run is None or world is None or faults is None:
         raise ScenarioError(problems)
     app.check(config, (world.width, world.height))
-    return Scenario(path, app_path, app, run, world, config, data)
+    return Scenario(path, app_path, app, run, world, config, data, faults)
 
 
 def _section(

@@ -11,6 +11,9 @@ under its own name (status as its string, robot ids as strings in maps) plus a
       "messages": {"internal": <total>, "external": <total>},
       "protocol_errors": <total>
     }
+
+``faults`` is ``null`` unless the scenario has a ``[faults]`` table; then it holds
+the fault counts (``sent``, ``lost``, ...) and the table gets a ``faults`` line.
 """
 
 from __future__ import annotations
@@ -108,6 +111,7 @@ def results_dict(result: RunResult) -> dict[str, Any]:
         "messages_internal": dict(sorted(result.messages_internal.items())),
         "messages_external": dict(sorted(result.messages_external.items())),
         "protocol_errors": dict(sorted(result.protocol_errors.items())),
+        "faults": None if result.faults is None else dict(result.faults),
         "groups": {label: list(ids) for label, ids in result.groups.items()},
         "extra": dict(result.extra),
         "config": result.config,
@@ -218,6 +222,8 @@ def summary_table(result: RunResult) -> str:
     rows.append(("messages internal", _counts_parts(result.messages_internal, total=True), ""))
     rows.append(("messages external", _counts_parts(result.messages_external, total=True), ""))
     rows.append(("protocol errors", _counts_parts(result.protocol_errors, total=False), ""))
+    if result.faults is not None:
+        rows.append(("faults", _faults_parts(result.faults), ""))
     if result.groups:
         sizes = [f"{label} {len(ids):,}" for label, ids in result.groups.items()]
         rows.append(("robots", sizes, ""))
@@ -296,6 +302,11 @@ def _counts_parts(counts: Mapping[str, int], *, total: bool) -> str | list[str]:
     if total:
         parts[-1] += f" (total {sum(counts.values()):,})"
     return parts
+
+
+def _faults_parts(faults: Mapping[str, int]) -> list[str]:
+    """``1,234 sent``, ``12 lost``, ... in the order the fault injector counts them."""
+    return [f"{n:,} {name.replace('_', ' ')}" for name, n in faults.items()]
 
 
 def _extra_text(value: float | int | str) -> str:

@@ -50,6 +50,9 @@ class RunResult:
         messages_internal: internal messages sent, by message class name.
         messages_external: external messages sent, by message class name.
         protocol_errors: messages dropped by the runtime, by reason.
+        faults: what the ``[faults]`` table did to the datagrams (the counts of
+            :attr:`~cas_async.transport.faulty.FaultyTransport.stats`), ``None``
+            when the run had no faults.
         groups: robot ids by group label (e.g. ``{"Sink": [3, 4]}``), for tables and plots.
         config: the scenario as loaded (after ``--set`` overrides), as plain TOML data.
         extra: application-specific figures, shown in the table and written to JSON.
@@ -74,6 +77,7 @@ class RunResult:
     messages_internal: dict[str, int] = field(default_factory=dict)
     messages_external: dict[str, int] = field(default_factory=dict)
     protocol_errors: dict[str, int] = field(default_factory=dict)
+    faults: dict[str, int] | None = None
     groups: dict[str, list[int]] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, float | int | str] = field(default_factory=dict)

@@ -24,6 +24,7 @@ from ..sim.environment import Environment
 from ..sim.items import ItemEvent, ItemEventKind
 from ..swarm import Swarm
 from ..transport.base import Transport
+from ..transport.faulty import FaultyTransport
 from ..transport.memory import MemoryTransport
 from ..transport.udp import UdpTransport
 from .app import Mission, SimulationSetup
@@ -35,8 +36,15 @@ from .trace import Trace
 __all__ = ["run_scenario"]
 
 
-def _transport(name: str) -> Transport:
-    return MemoryTransport() if name == "memory" else UdpTransport()
+def _transport(scenario: Scenario, clock: Clock) -> Transport:
+    """The run's transport, wrapped in the ``[faults]`` when it has any."""
+    run = scenario.run
+    transport: Transport = MemoryTransport() if run.transport == "memory" else UdpTransport()
+    faults = scenario.faults.as_faults()
+    if not faults.any:
+        return transport
+    seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
+    return FaultyTransport(transport, faults, seed=seed, clock=clock)
 
 
 def _clock(scenario: Scenario) -> Clock:
@@ -71,12 +79,13 @@ async def run_scenario(
     world = (scenario.world.width, scenario.world.height)
     environment = Environment()
     clock = _clock(scenario)
+    transport = _transport(scenario, clock)
     setup = SimulationSetup(
         scenario.config,
         world,
         environment,
         clock,
-        _transport(run.transport),
+        transport,
         np.random.default_rng(run.seed),
     )
     mission = scenario.app.build(setup)
@@ -134,6 +143,8 @@ async def run_scenario(
             progress.close(final=False)  # whatever is printed next starts on a fresh line
         raise
     _measure(result, mission, swarm, environment, clock.now())
+    if isinstance(transport, FaultyTransport):  # read after the swarm closed its endpoints
+        result.faults = transport.stats
     result.wall_time = wall_clock() - started
     if progress is not None:
         progress.close(final=True)

@@ -1,6 +1,7 @@
 """Transports: one module per way of moving a robot's datagrams."""
 
-from .base import DatagramSink, Endpoint, Transport
+from .base import DatagramSink, Endpoint, LossCounter, Transport
+from .faulty import Faults, FaultyTransport
 from .memory import MemoryTransport
 from .udp import MAX_UDP_PAYLOAD, UdpDirectory, UdpTransport
 
@@ -8,6 +9,9 @@ __all__ = [
     "MAX_UDP_PAYLOAD",
     "DatagramSink",
     "Endpoint",
+    "Faults",
+    "FaultyTransport",
+    "LossCounter",
     "MemoryTransport",
     "Transport",
     "UdpDirectory",

@@ -182,7 +182,7 @@ def test_problems_of_every_section_are_reported_together(write: WriteScenario) -
                 (
                     "",
                     "unknown key 'robot' (did you mean 'robots'? "
-                    "expected one of: app, label, robots, run, world)",
+                    "expected one of: app, faults, label, robots, run, world)",
                 )
             ],
             id="app-section",
@@ -195,7 +195,7 @@ def test_problems_of_every_section_are_reported_together(write: WriteScenario) -
                 (
                     "",
                     "unknown key 'wrold' (did you mean 'world'? "
-                    "expected one of: app, label, robots, run, world)",
+                    "expected one of: app, faults, label, robots, run, world)",
                 ),
             ],
             id="runner-section",
