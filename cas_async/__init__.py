@@ -51,11 +51,14 @@ from .sim import (
 )
 from .supervision import RestartPolicy
 from .swarm import Swarm
+from .swarm_key import KeyFileWarning, SwarmKey
 from .transport import (
+    AuthenticatedTransport,
     DatagramSink,
     Endpoint,
     Faults,
     FaultyTransport,
+    InsecureBindWarning,
     LossCounter,
     MemoryTransport,
     Transport,
@@ -68,6 +71,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Address",
+    "AuthenticatedTransport",
     "CasError",
     "Clock",
     "Codec",
@@ -82,10 +86,12 @@ __all__ = [
     "Environment",
     "Faults",
     "FaultyTransport",
+    "InsecureBindWarning",
     "ItemEvent",
     "ItemEventKind",
     "ItemId",
     "ItemLedger",
+    "KeyFileWarning",
     "Layer",
     "LayerCounters",
     "LayerError",
@@ -115,6 +121,7 @@ __all__ = [
     "SpeedProfile",
     "StackMismatchError",
     "Swarm",
+    "SwarmKey",
     "Transport",
     "UdpDirectory",
     "UdpTransport",

@@ -19,6 +19,7 @@ import asyncio
 import contextlib
 import ipaddress
 import socket
+import warnings
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any, Final, Protocol, final
 
@@ -27,7 +28,7 @@ from ..errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .base import DatagramSink, Endpoint, Transport, drop_socket_error
 from .udp_socket import SocketWire
 
-__all__ = ["MAX_UDP_PAYLOAD", "UdpDirectory", "UdpTransport"]
+__all__ = ["MAX_UDP_PAYLOAD", "InsecureBindWarning", "UdpDirectory", "UdpTransport"]
 
 MAX_UDP_PAYLOAD: Final = 65_507
 """Largest IPv4 UDP payload; larger datagrams cannot be sent."""
@@ -35,6 +36,10 @@ MAX_UDP_PAYLOAD: Final = 65_507
 _DEFAULT_BUFFER: Final = 4 * 1024 * 1024
 
 HostPort = tuple[str, int]
+
+
+class InsecureBindWarning(UserWarning):
+    """A robot listens beyond loopback with no authentication: anyone reaching it can send."""
 
 
 class UdpDirectory:
@@ -53,6 +58,9 @@ class UdpDirectory:
 
     def __init__(self, addresses: Mapping[RobotId, HostPort] | None = None) -> None:
         self._addresses: dict[RobotId, HostPort] = {}
+        # Source address -> robot: how a received datagram's sender is known. IPv6
+        # source addresses come as (host, port, flowinfo, scope_id).
+        self._senders: dict[tuple[Any, ...], RobotId] = {}
         for robot_id, (host, port) in (addresses or {}).items():
             self.add(robot_id, host, port)
 
@@ -74,11 +82,22 @@ class UdpDirectory:
             ) from None
         if not isinstance(port, int) or not 0 <= port <= 65535:
             raise ConfigurationError(f"robot {robot_id}: port must be in 0..65535, got {port!r}")
+        self.remove(robot_id)
         self._addresses[robot_id] = (host, port)
+        for source in _source_forms(host, port):
+            self._senders[source] = robot_id
 
     def remove(self, robot_id: RobotId) -> None:
         """Forgets ``robot_id``; no error when unknown."""
-        self._addresses.pop(robot_id, None)
+        old = self._addresses.pop(robot_id, None)
+        if old is not None:
+            for source in _source_forms(*old):
+                if self._senders.get(source) == robot_id:
+                    del self._senders[source]
+
+    def sender(self, source: Any) -> RobotId | None:
+        """The robot listening at ``source`` (an address a datagram came from), or ``None``."""
+        return self._senders.get(source)
 
     def get(self, robot_id: RobotId) -> HostPort | None:
         """The address of ``robot_id``, or ``None``."""
@@ -97,6 +116,21 @@ class UdpDirectory:
         return f"UdpDirectory({self._addresses!r})"
 
 
+def _is_loopback(host: str) -> bool:
+    """Whether ``host`` (a bound IP literal) only takes datagrams from this machine."""
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:  # not an IP literal: assume the worst
+        return False
+
+
+def _source_forms(host: str, port: int) -> tuple[tuple[Any, ...], ...]:
+    """How a datagram from ``host:port`` names its source (IPv6 adds flowinfo, scope)."""
+    if ":" in host:
+        return ((host, port), (host, port, 0, 0))
+    return ((host, port),)
+
+
 class _Wire(Protocol):
     """What an endpoint sends through: an asyncio transport or a :class:`SocketWire`."""
 
@@ -106,13 +140,19 @@ class _Wire(Protocol):
 
 
 class _Protocol(asyncio.DatagramProtocol):
-    __slots__ = ("_sink",)
+    """Hands datagrams to the robot, naming the sender by its source address."""
 
-    def __init__(self, sink: DatagramSink) -> None:
+    __slots__ = ("_senders", "_sink")
+
+    def __init__(self, sink: DatagramSink, directory: UdpDirectory) -> None:
         self._sink = sink
+        self._senders = directory._senders  # read per datagram: skip the method call
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        self._sink.datagram_received(data)
+        self._sink.datagram_received(data, self._senders.get(addr))
+
+    def transport_dropped(self, reason: str, detail: str) -> None:
+        self._sink.transport_dropped(reason, detail)
 
     def error_received(self, exc: Exception) -> None:
         # ICMP errors (e.g. port unreachable after a peer stopped) land here.
@@ -181,6 +221,9 @@ class UdpEndpoint(Endpoint):
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._addresses if rid != self.robot_id]
 
+    def knows(self, robot_id: RobotId) -> bool:
+        return robot_id in self._addresses
+
     def close(self) -> None:
         """Closes the socket and undoes this endpoint's directory entry, if it made one.
 
@@ -241,7 +284,7 @@ class UdpTransport(Transport):
         bind = configured or (self.host, 0)
         loop = asyncio.get_running_loop()
         try:
-            transport = await self._bind(loop, bind, sink)
+            transport = await self._bind(loop, bind, _Protocol(sink, self.directory))
         except OSError as exc:
             raise ConfigurationError(f"robot {robot_id}: cannot bind UDP {bind}: {exc}") from exc
         sock = transport.get_extra_info("socket")
@@ -267,10 +310,24 @@ class UdpTransport(Transport):
             registered=registered,
             configured=configured,
         )
+        if not self.authenticated and not _is_loopback(host):
+            try:
+                warnings.warn(
+                    f"robot {robot_id}: UDP socket bound to {host} port {port} accepts "
+                    "datagrams from beyond this machine without authentication; anyone who "
+                    "can reach it can send this robot messages. Give the swarm a key "
+                    "(CAS_ASYNC_SWARM_KEY=<hex> or a key file, see SwarmKey) and wrap the "
+                    "transport in AuthenticatedTransport, or bind 127.0.0.1",
+                    InsecureBindWarning,
+                    stacklevel=2,
+                )
+            except BaseException:  # warnings turned into errors: no socket left behind
+                endpoint.close()
+                raise
         return endpoint
 
     @staticmethod
-    async def _bind(loop: asyncio.AbstractEventLoop, bind: HostPort, sink: DatagramSink) -> _Wire:
+    async def _bind(loop: asyncio.AbstractEventLoop, bind: HostPort, receiver: _Protocol) -> _Wire:
         if isinstance(loop, asyncio.SelectorEventLoop):  # the stdlib loop: read in batches
             infos = await loop.getaddrinfo(*bind, type=socket.SOCK_DGRAM)
             family, kind, proto, _, address = infos[0]
@@ -280,8 +337,8 @@ class UdpTransport(Transport):
             except OSError:
                 sock.close()
                 raise
-            return SocketWire(loop, sock, sink)
-        transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(sink), local_addr=bind)
+            return SocketWire(loop, sock, receiver)
+        transport, _ = await loop.create_datagram_endpoint(lambda: receiver, local_addr=bind)
         return transport
 
     def __repr__(self) -> str:
