@@ -316,6 +316,32 @@ class Layer:
         by_type = counters.external_by_type
         by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
 
+    def resend(self, robot_id: RobotId, msg: Message) -> None:
+        """Sends an external message this layer already sent, again and unchanged.
+
+        It keeps its id, so the other robot handles it at most once: a repetition
+        of a message it already has is dropped, and a repeated request it already
+        answered is answered again with the same reply. This is how a layer that
+        takes answers in ``handle_msg`` (instead of awaiting ``request()``) retries
+        over a lossy network, typically from a ``wake_after`` timer.
+
+        Raises:
+            RuleViolation: ``msg`` was not sent by this layer as an external message.
+            UnknownRobotError: the transport knows no such robot.
+        """
+        robot = self._check_live()
+        if not (
+            msg.msg_id and msg.robot_id == robot.robot_id and msg.src_layer == msg.dst_layer
+        ) or msg.src_layer != self._level:
+            raise RuleViolation(
+                f"{self._log.prefix}resend() needs a message this layer sent, got {msg!r}"
+            )
+        robot._endpoint.send(robot_id, robot._codec.encode(msg))  # type: ignore[union-attr]
+        counters = self._counters
+        counters.sent_external += 1
+        by_type = counters.external_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
+
     def broadcast(self, msg: Message, robots: Iterable[RobotId] | None = None) -> None:
         """Sends one external message to the same level of several robots.
 

@@ -54,6 +54,8 @@ class _Robot:
     motion: Motion
     since: float
     odometer: float = 0.0  # distance translated by the motions before the current one
+    # Robots this one takes items from; None: from anyone (see Environment.accept_from).
+    accepting: set[RobotId] | None = None
 
     def travelled(self, t: float) -> float:
         """Total distance translated up to instant ``t``."""
@@ -319,7 +321,8 @@ class Environment:
         Raises:
             UnknownRobotError: either robot is not in the environment.
             SimulationError: ``reach`` is negative or NaN, ``t`` is not finite, the robots
-                are farther apart than ``reach``, or the ledger refuses the transfer
+                are farther apart than ``reach``, ``receiver`` does not take items from
+                ``giver`` (see :meth:`accept_from`), or the ledger refuses the transfer
                 (see :meth:`ItemLedger.transfer`). Nothing changes then.
         """
         self._robot(giver)
@@ -336,7 +339,43 @@ class Environment:
                 f"robot {receiver} at ({there.x!r}, {there.y!r}) at {t!r}: they are "
                 f"{distance!r} apart, beyond the reach of {reach!r}"
             )
+        accepting = self._robot(receiver).accepting
+        if accepting is not None and giver not in accepting:
+            raise SimulationError(
+                f"robot {receiver} does not take items from robot {giver} at {t!r}"
+                f" (it takes them from {sorted(accepting)})"
+            )
         self._items.transfer(item, giver, receiver, t)
+
+    def accept_from(self, receiver: RobotId, giver: RobotId) -> None:
+        """From now on ``receiver`` takes items from ``giver`` (and only from the givers so named).
+
+        A robot takes items from anyone until this or :meth:`refuse_from` is first
+        called for it. Holding out one's hands is a physical, atomic act: a robot
+        that withdraws them (``refuse_from``) and then finds no item in them knows
+        that no hand-over from that giver can happen any more, whatever messages
+        were lost. That is how two robots agree on a hand-over without a reliable
+        network.
+
+        Raises:
+            UnknownRobotError: either robot is not in the environment.
+        """
+        self._robot(giver)
+        entry = self._robot(receiver)
+        if entry.accepting is None:
+            entry.accepting = set()
+        entry.accepting.add(giver)
+
+    def refuse_from(self, receiver: RobotId, giver: RobotId) -> None:
+        """``receiver`` takes no more items from ``giver`` (see :meth:`accept_from`).
+
+        Raises:
+            UnknownRobotError: ``receiver`` is not in the environment.
+        """
+        entry = self._robot(receiver)
+        if entry.accepting is None:
+            entry.accepting = set()
+        entry.accepting.discard(giver)
 
     def retire_item(self, item: ItemId, robot_id: RobotId, t: float) -> None:
         """Retires ``item``, held by the robot, at instant ``t``.

@@ -103,6 +103,19 @@ class Middleware(ABC):
     def retire_item(self, item: ItemId) -> None:
         """Retires ``item``, held by this robot, now: nobody holds it any more."""
 
+    def accept_from(self, giver: RobotId) -> None:
+        """Holds out this robot's hands to ``giver``: from now on it takes items from it.
+
+        Until this robot first calls ``accept_from`` or ``refuse_from``, it takes
+        items from anyone. Optional for a middleware (the default raises
+        ``NotImplementedError``).
+        """
+        raise NotImplementedError(f"{type(self).__name__} does not support accept_from")
+
+    def refuse_from(self, giver: RobotId) -> None:
+        """Withdraws this robot's hands from ``giver``: no hand-over from it can happen now."""
+        raise NotImplementedError(f"{type(self).__name__} does not support refuse_from")
+
 
 @final
 class SimulatedMiddleware(Middleware):
@@ -219,6 +232,14 @@ class SimulatedMiddleware(Middleware):
     def items(self) -> tuple[ItemId, ...]:
         """The items the robot holds now, in the order it received them."""
         return self._environment.items.held_by(self._robot_id)
+
+    def accept_from(self, giver: RobotId) -> None:
+        """Takes items from ``giver`` from now on (see :meth:`Environment.accept_from`)."""
+        self._environment.accept_from(self._robot_id, giver)
+
+    def refuse_from(self, giver: RobotId) -> None:
+        """Takes no more items from ``giver`` (see :meth:`Environment.refuse_from`)."""
+        self._environment.refuse_from(self._robot_id, giver)
 
     def create_item(self) -> ItemId:
         """Creates an item in the robot's hands at ``clock.now()`` and returns its id."""
