@@ -9,13 +9,17 @@ queries (``RequestInfo``, ``RequestRobotsInRange``).
 
 Fatigue lives here: taking a bucket switches the motion to a decelerating speed
 profile, handing it over resets it to full speed.
+
+Hands: a receiver holds them out to its giver (``"Accept"``) and withdraws them
+once it has the bucket or gives up (``"Withdraw"``); a hand-over into hands not
+held out fails, and the giver keeps the bucket (see the Task layer).
 """
 
 from __future__ import annotations
 
 import math
 
-from cas_async import Message, Middleware
+from cas_async import Message, Middleware, SimulationError
 
 from .base import BrigadeLayer, Params
 from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
@@ -90,6 +94,12 @@ class Action(BrigadeLayer):
         if status == "Move":
             await self.middleware.move_to(command.x, command.y)
             return self._done(status)
+        if status == "Accept":
+            self.middleware.accept_from(command.partner)
+            return self._done(status)
+        if status == "Withdraw":
+            self.middleware.refuse_from(command.partner)
+            return self._done(status, command.bucket)
         if status == "MakeBucket":
             return self._done(status, self.middleware.create_item())
         if status == "SwapBucket":
@@ -101,7 +111,11 @@ class Action(BrigadeLayer):
 
     async def _give(self, bucket: int, partner: int) -> CompletionStatus:
         await self.clock.sleep(self.params.handover_time)
-        self.middleware.hand_over(bucket, partner)  # the one atomic moment of the exchange
+        try:
+            self.middleware.hand_over(bucket, partner)  # the one atomic moment of the exchange
+        except SimulationError as refused:  # the partner withdrew its hands: no exchange
+            self.log.info("hand-over refused: %s", refused)
+            return self._done("SwapBucket", bucket)
         if self.params.mobile:
             self.middleware.speed_profile = self.params.empty()
         return self._done("SwapBucket", bucket)
@@ -112,6 +126,7 @@ class Action(BrigadeLayer):
                 f"robot {self.robot_id}: robot {giver} reported handing over bucket {bucket}, "
                 f"but this robot holds {list(self.middleware.items())}"
             )
+        self.middleware.refuse_from(giver)  # hands back in: nothing more from this giver
         if self.kind is Kind.SINK:
             self.middleware.retire_item(bucket)
         elif self.params.mobile:

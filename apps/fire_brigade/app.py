@@ -127,6 +127,9 @@ class FireBrigade:
                 retry_interval=config.strategy.retry_interval,
                 search_growth=config.strategy.search_growth,
                 seed=int(rng.integers(2**63)),
+                timeout=config.messaging.timeout,
+                retries=config.messaging.retries,
+                patience=config.messaging.patience,
             )
             setup.environment.add_robot(robot_id, pose, mobile=params.mobile)
             middleware = SimulatedMiddleware(

@@ -15,12 +15,26 @@ from cas_async import ConstantSpeed, Decelerating, Layer, Message
 
 from .messages import Kind
 
-__all__ = ["ACTION", "GOAL", "GROUP", "STRATEGY", "TASK", "BrigadeLayer", "Params", "Point"]
+__all__ = [
+    "ACTION",
+    "EARLY",
+    "GOAL",
+    "GROUP",
+    "STRATEGY",
+    "TASK",
+    "BrigadeLayer",
+    "Params",
+    "Point",
+]
 
 Point = tuple[float, float]
 
 GOAL, STRATEGY, GROUP, TASK, ACTION = range(5)
 """Levels of the five layers, top (0) to bottom (4)."""
+
+EARLY = 1e-6
+"""Simulated seconds by which a timer may fire ahead of its instant (clock rounding):
+a layer woken by ``wake_after`` compares the clock with its deadline minus this."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,6 +52,9 @@ class Params:
         retry_interval: a generator's wait before asking again after refusals.
         search_growth: a generator's search radius grows by this after each failed round.
         seed: seeds the layer's own random choices.
+        timeout: seconds to wait for another robot before asking again.
+        retries: times a question is asked again before the other robot counts as silent.
+        patience: seconds a robot waits at a meeting point for a silent partner.
     """
 
     kind: Kind
@@ -52,6 +69,14 @@ class Params:
     retry_interval: float
     search_growth: float
     seed: int
+    timeout: float = 0.5
+    retries: int = 6
+    patience: float = 30.0
+
+    @property
+    def give_up_after(self) -> float:
+        """Seconds after which a question asked ``retries`` times more is given up."""
+        return (self.retries + 1) * self.timeout
 
     @property
     def mobile(self) -> bool:
@@ -90,3 +115,7 @@ class BrigadeLayer(Layer):
     def unexpected(self, msg: Message, why: str) -> None:
         """Logs a message this layer's state machine has no use for (never raised)."""
         self.log.warning("ignored %r: %s", msg, why)
+
+    def late(self, msg: Message, why: str) -> None:
+        """Logs a message that came too late or twice: routine on a lossy network."""
+        self.log.debug("ignored %r: %s", msg, why)

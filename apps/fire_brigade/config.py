@@ -5,7 +5,8 @@ A scenario file has, besides ``app``, ``[run]`` and ``[world]``:
 * ``[mission]``: how many buckets must reach a sink;
 * ``[stations]``: where the Generators and Sinks stand;
 * ``[transporters]``: how many, where they start, and how they move;
-* ``[strategy]``: how partners are chosen, and the search parameters.
+* ``[strategy]``: how partners are chosen, and the search parameters;
+* ``[messaging]``: how the layers live with a lossy network (timeouts, retries).
 
 Defaults follow the thesis's §5.8.1 scenario; the choices where the thesis is
 silent are explained in this app's README.
@@ -18,7 +19,14 @@ from dataclasses import dataclass
 
 from cas_async.scenario import setting
 
-__all__ = ["FireBrigadeConfig", "Mission", "Stations", "StrategyConfig", "Transporters"]
+__all__ = [
+    "FireBrigadeConfig",
+    "Messaging",
+    "Mission",
+    "Stations",
+    "StrategyConfig",
+    "Transporters",
+]
 
 Point = tuple[float, float]
 
@@ -70,6 +78,21 @@ class StrategyConfig:
 
 
 @dataclass(frozen=True)
+class Messaging:
+    """Timeouts and retries: how long a layer waits for another robot before acting alone."""
+
+    timeout: float = setting(
+        0.5, gt=0, doc="seconds to wait for an answer (or a partner's sign) before asking again"
+    )
+    retries: int = setting(
+        6, ge=0, doc="times a question is asked again before the partner counts as silent"
+    )
+    patience: float = setting(
+        30.0, gt=0, doc="seconds a robot waits at a meeting point for a silent partner"
+    )
+
+
+@dataclass(frozen=True)
 class FireBrigadeConfig:
     """All of the Fire Brigade's sections."""
 
@@ -77,3 +100,4 @@ class FireBrigadeConfig:
     stations: Stations = setting(default_factory=Stations)
     transporters: Transporters = setting(default_factory=Transporters)
     strategy: StrategyConfig = setting(default_factory=StrategyConfig)
+    messaging: Messaging = setting(default_factory=Messaging)

@@ -3,6 +3,8 @@
 * A robot that holds a bucket and has no destination finds one: a Generator asks
   every robot where it is and what it is (``RequestInfo``) and picks the nearest
   Sink. Sinks never move, so the answer is kept for the Generator's next buckets.
+  Robots that do not answer within ``timeout`` are asked again, up to ``retries``
+  times; then the Sinks known so far are enough (and without one it keeps asking).
   A Transporter that receives a bucket takes over the destination its giver chose.
 * With a destination, it hands the responsibility down: ``ChangeStatus("MoveBucket")``.
 * When the layers below report a hand-over (``"Exchanged"``): a Transporter that
@@ -14,7 +16,7 @@ from __future__ import annotations
 
 from cas_async import Message, MsgType
 
-from .base import ACTION, BrigadeLayer, Params, Point
+from .base import ACTION, EARLY, BrigadeLayer, Params, Point
 from .estimate import distance
 from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo
 
@@ -32,11 +34,15 @@ class Goal(BrigadeLayer):
         self.here: Point = (0.0, 0.0)
         self.delegated = False  # "MoveBucket" sent down and not yet completed
         self.asking = False  # a RequestInfo round is under way
+        self.rounds = 0  # RequestInfo rounds sent in this search
+        self.answers_due = 0.0  # when the current round is over
         self.answers: dict[int, RequestInfo] = {}
         self.sinks: dict[int, Point] | None = None  # known once a round completed
 
     async def inner_process(self) -> None:
         """Starts what the state calls for: a destination search or a MoveBucket."""
+        if self.asking and self.clock.now() >= self.answers_due - EARLY:
+            self._round_over()
         if self.kind is Kind.GENERATOR and self.bucket < 0 and not self.delegated:
             await self._make_bucket()
         if self.bucket < 0 or self.delegated:
@@ -69,13 +75,36 @@ class Goal(BrigadeLayer):
         if self.asking:
             return
         self.asking = True
+        self.rounds = 0
         where = await self.request_layer(ACTION, RequestInfo())
         assert isinstance(where, RequestInfo)
         self.here = (where.x, where.y)
+        self._ask(self.params.peers)
+
+    def _ask(self, robots: tuple[int, ...]) -> None:
         self.broadcast(
-            RequestInfo(where.x, where.y, self.kind, msg_type=MsgType.NEGOTIATION),
-            robots=self.params.peers,
+            RequestInfo(self.here[0], self.here[1], self.kind, msg_type=MsgType.NEGOTIATION),
+            robots=robots,
         )
+        self.rounds += 1
+        self.answers_due = self.clock.now() + self.params.timeout
+        self.wake_after(self.params.timeout)
+
+    def _round_over(self) -> None:
+        """Asks again who has not answered; after ``retries`` rounds, a Sink known is enough."""
+        if self.rounds > self.params.retries and self._settle():
+            return
+        self._ask(tuple(r for r in self.params.peers if r not in self.answers))
+
+    def _settle(self) -> bool:
+        """Keeps the Sinks among the answers, if any; whether the search is over."""
+        sinks = {rid: (i.x, i.y) for rid, i in self.answers.items() if i.kind is Kind.SINK}
+        if not sinks:
+            return False
+        self.asking = False
+        self.sinks = sinks
+        self.answers.clear()
+        return True
 
     def _choose_sink(self) -> None:
         assert self.sinks
@@ -94,19 +123,11 @@ class Goal(BrigadeLayer):
             self.reply(msg, RequestInfo(where.x, where.y, self.kind))
             return
         if not self.asking:
-            self.unexpected(msg, "no RequestInfo round is under way")
+            self.late(msg, "no RequestInfo round is under way")
             return
         self.answers[msg.robot_id] = msg
-        if len(self.answers) == len(self.params.peers):
-            self.asking = False
-            self.sinks = {
-                rid: (info.x, info.y)
-                for rid, info in self.answers.items()
-                if info.kind is Kind.SINK
-            }
-            self.answers.clear()
-            if not self.sinks:
-                raise RuntimeError(f"robot {self.robot_id}: no robot of the swarm is a sink")
+        if len(self.answers) == len(self.params.peers) and not self._settle():
+            raise RuntimeError(f"robot {self.robot_id}: no robot of the swarm is a sink")
 
     async def store_intra_msg(self, msg: Message) -> None:
         """A hand-over happened below: take the new state."""

@@ -5,14 +5,20 @@ kind and current speed. The partner works out where they will meet (both moving
 toward each other at once; at the immobile one's position when one cannot move),
 answers with that point, and both tell their Task layer (``"Meeting"``). A solo leg
 (``"Carry"``) passes straight through to the Task layer. Completions from below
-(``"Exchanged"``, ``"Moved"``) are passed up to the Strategy layer.
+(``"Exchanged"``, ``"Moved"``, ``"Abandoned"``) are passed up to the Strategy layer.
+
+A partner may go silent (or the network may lose every copy of a message): the
+giver asks ``Meet`` again up to ``retries`` times and gives up after that; the
+receiver gives up when no ``Meet`` came within twice that time. Giving up is
+reported upwards as ``"Abandoned"``; a ``Meet`` for a partnership given up is
+refused (DENY), so the giver gives up too.
 """
 
 from __future__ import annotations
 
-from cas_async import ConstantSpeed, Message, MsgType, SpeedProfile
+from cas_async import ConstantSpeed, Message, MsgType, RequestTimeout, SpeedProfile
 
-from .base import ACTION, BrigadeLayer, Params, Point
+from .base import ACTION, EARLY, BrigadeLayer, Params, Point
 from .estimate import meeting_point
 from .messages import ChangeStatus, Meet, RequestInfo
 
@@ -25,6 +31,7 @@ class GroupActivity(BrigadeLayer):
     def __init__(self, params: Params) -> None:
         super().__init__(params)
         self.partnerships: dict[int, ChangeStatus] = {}  # partner -> the "Partnered" status
+        self.meet_due: dict[int, float] = {}  # receiver: partner -> when its Meet is overdue
 
     async def _where(self) -> RequestInfo:
         where = await self.request_layer(ACTION, RequestInfo())
@@ -37,6 +44,28 @@ class GroupActivity(BrigadeLayer):
             return None
         return self.params.carrying(speed) if carrying else ConstantSpeed(speed)
 
+    async def inner_process(self) -> None:
+        """A receiver whose giver never sent ``Meet`` gives the partnership up."""
+        now = self.clock.now()
+        for partner, due in list(self.meet_due.items()):
+            if now >= due - EARLY:
+                del self.meet_due[partner]
+                partnership = self.partnerships.pop(partner, None)
+                if partnership is not None:
+                    self.log.info("robot %d never sent Meet: partnership abandoned", partner)
+                    self._abandoned(partnership)
+
+    def _abandoned(self, partnership: ChangeStatus) -> None:
+        self.send_up(
+            ChangeStatus(
+                "Abandoned",
+                partner=partnership.partner,
+                has_bucket=partnership.has_bucket,
+                bucket=partnership.bucket,
+                deal=partnership.deal,
+            )
+        )
+
     async def store_intra_msg(self, msg: Message) -> None:
         """From above: a partnership or a solo leg; from below: their completion."""
         if not isinstance(msg, ChangeStatus):
@@ -44,21 +73,14 @@ class GroupActivity(BrigadeLayer):
         elif msg.status == "Partnered":
             self.partnerships[msg.partner] = msg
             if msg.has_bucket:  # the giver opens the coordination
-                where = await self._where()
-                self.send(
-                    msg.partner,
-                    Meet(
-                        where.x,
-                        where.y,
-                        self.kind,
-                        where.speed,
-                        deal=msg.deal,
-                        msg_type=MsgType.NEGOTIATION,
-                    ),
-                )
+                await self._open_meeting(msg)
+            else:
+                wait = 2 * self.params.give_up_after
+                self.meet_due[msg.partner] = self.clock.now() + wait
+                self.wake_after(wait)
         elif msg.status == "Carry":
             self.send_down(msg)
-        elif msg.status == "Exchanged":
+        elif msg.status in ("Exchanged", "Abandoned"):
             self.partnerships.pop(msg.partner, None)
             self.send_up(msg)
         elif msg.status == "Moved":
@@ -66,34 +88,49 @@ class GroupActivity(BrigadeLayer):
         else:
             self.unexpected(msg, f"unknown status {msg.status!r}")
 
+    async def _open_meeting(self, partnership: ChangeStatus) -> None:
+        where = await self._where()
+        ask = Meet(where.x, where.y, self.kind, where.speed, deal=partnership.deal)
+        try:
+            answer = await self.request(
+                partnership.partner,
+                ask,
+                timeout=self.params.timeout,
+                retries=self.params.retries,
+            )
+        except RequestTimeout:
+            answer = None
+        if self.partnerships.get(partnership.partner) is not partnership:
+            return  # cannot happen: a giver has one partnership at a time
+        if not isinstance(answer, Meet) or answer.msg_type != MsgType.ACCEPT:
+            self.log.info("robot %d did not agree to meet", partnership.partner)
+            del self.partnerships[partnership.partner]
+            self._abandoned(partnership)
+            return
+        self._meet_at(partnership, (answer.x, answer.y))
+
     async def handle_msg(self, msg: Message) -> None:
-        """The partner's Meet: answer with the meeting point, or take the answer."""
-        if not isinstance(msg, Meet):
-            self.unexpected(msg, "the Group Activity layer only exchanges Meet")
+        """The giver's Meet: answer with the meeting point (or refuse an unknown partnership)."""
+        if not isinstance(msg, Meet) or msg.msg_type != MsgType.NEGOTIATION:
+            self.unexpected(msg, "the Group Activity layer only takes Meet requests")
             return
         partnership = self.partnerships.get(msg.robot_id)
         if partnership is not None and partnership.deal != msg.deal:
             partnership = None  # a message of an earlier partnership with that robot
-        if msg.msg_type == MsgType.NEGOTIATION:
-            if partnership is None or partnership.has_bucket:
-                refusal = Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY)
-                self.reply(msg, refusal)
-                self.unexpected(msg, "not this robot's partner")
-                return
-            where = await self._where()
-            point = meeting_point(
-                (msg.x, msg.y),
-                (where.x, where.y),
-                self._profile(msg.speed, carrying=True),
-                self._profile(where.speed, carrying=False),
-            )
-            self.reply(msg, Meet(point[0], point[1], self.kind, deal=msg.deal))
-            self._meet_at(partnership, point)
-        elif partnership is None or msg.msg_type == MsgType.DENY:
-            # Cannot happen between robots running this app: partnerships are agreed first.
-            raise RuntimeError(f"robot {self.robot_id}: robot {msg.robot_id} refused to meet")
-        else:
-            self._meet_at(partnership, (msg.x, msg.y))
+        if partnership is None or partnership.has_bucket:
+            self.reply(msg, Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY))
+            self.late(msg, "not (or no longer) this robot's partner")
+            return
+        self.meet_due.pop(msg.robot_id, None)
+        where = await self._where()
+        point = meeting_point(
+            (msg.x, msg.y),
+            (where.x, where.y),
+            self._profile(msg.speed, carrying=True),
+            self._profile(where.speed, carrying=False),
+        )
+        self.reply(msg, Meet(point[0], point[1], self.kind, deal=msg.deal))
+        self._meet_at(partnership, point)
 
     def _meet_at(self, partnership: ChangeStatus, point: Point) -> None:
         self.send_down(

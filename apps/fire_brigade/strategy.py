@@ -11,7 +11,13 @@ cannot move, waits ``retry_interval`` and asks again within a wider radius.
 It also answers other robots' requests: an idle Transporter (no bucket, no
 partner) and a Sink accept; everyone else refuses. Partnerships are not
 interruptible: they last until the bucket changed hands (``"Exchanged"``), which
-is passed up to the Goal layer.
+is passed up to the Goal layer, or until a layer below gives up on a silent
+partner (``"Abandoned"``): a giver then looks for another partner, a receiver is
+free again.
+
+Over a lossy network a request left unanswered for ``timeout`` is sent again,
+unchanged (``resend``: the other robot handles it once and repeats its answer);
+after ``retries`` more attempts the robot asked counts as silent, like a refusal.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from dataclasses import dataclass
 
 from cas_async import Message, MsgType, SpeedProfile
 
-from .base import ACTION, BrigadeLayer, Params, Point
+from .base import ACTION, EARLY, BrigadeLayer, Params, Point
 from .estimate import distance
 from .messages import ChangeStatus, Kind, RequestPartner, RequestRobotsInRange
 
@@ -29,9 +35,6 @@ __all__ = ["Candidate", "SearchView", "Strategy"]
 
 _ARRIVED = 1e-9
 """Distance below which a carrier stands at its sink."""
-
-_EARLY = 1e-6
-"""Simulated seconds by which a timer may fire ahead of its instant (clock rounding)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,6 +98,9 @@ class Strategy(BrigadeLayer):
         self.to_ask: list[int] = []
         self.asked = -1  # the robot whose answer is awaited
         self.asked_in = -1  # the msg_id of that request: its answer's corr_id
+        self.question: RequestPartner | None = None  # that request, to send it again
+        self.tries = 0  # times it was sent
+        self.answer_due = 0.0  # when it is sent again (or the robot counts as silent)
         self.partners: set[int] = set()  # a Sink may have several at once
         self.stations: set[int] = set()  # robots that answered as Generator or Sink
         self.came_from = -1  # who handed this robot its bucket
@@ -109,10 +115,30 @@ class Strategy(BrigadeLayer):
 
     async def inner_process(self) -> None:
         """A round that found nobody and nowhere to go is retried after ``retry_interval``."""
-        # Also runs after every batch of messages: only act once the retry is due.
-        if self.retry_at is not None and self.clock.now() >= self.retry_at - _EARLY:
+        # Also runs after every batch of messages: only act once something is due.
+        now = self.clock.now()
+        if self.retry_at is not None and now >= self.retry_at - EARLY:
             self.retry_at = None
             await self._search()
+        if self.asked >= 0 and now >= self.answer_due - EARLY:
+            self._no_answer()
+
+    def _no_answer(self) -> None:
+        """The robot asked has not answered in time: ask again, or count it as silent."""
+        assert self.question is not None
+        if self.tries <= self.params.retries:
+            self.resend(self.asked, self.question)
+            self._await_answer()
+        else:
+            self.log.info(
+                "robot %d did not answer %d requests: asking others", self.asked, self.tries
+            )
+            self._ask_next()
+
+    def _await_answer(self) -> None:
+        self.tries += 1
+        self.answer_due = self.clock.now() + self.params.timeout
+        self.wake_after(self.params.timeout)
 
     def _retry_later(self) -> None:
         # A timer, not a sleep: requests keep being answered meanwhile.
@@ -130,6 +156,10 @@ class Strategy(BrigadeLayer):
             await self._search()
         elif msg.status == "Moved":
             await self._search()
+        elif msg.status == "Abandoned":
+            self.partners.discard(msg.partner)
+            if msg.has_bucket:  # a giver whose partner went silent: find another
+                await self._search()
         elif msg.status == "Exchanged":
             self.partners.discard(msg.partner)
             # Hold the bucket from now on, not from the Goal layer's "MoveBucket": a
@@ -199,6 +229,9 @@ class Strategy(BrigadeLayer):
             )
             self.send(self.asked, request)
             self.asked_in = request.msg_id  # stamped by send()
+            self.question = request
+            self.tries = 0
+            self._await_answer()
             return
         self.asked = -1
         if self.params.mobile:
@@ -246,7 +279,7 @@ class Strategy(BrigadeLayer):
         elif msg.msg_type == MsgType.NEGOTIATION:
             self._answer(msg)
         elif msg.robot_id != self.asked or msg.corr_id != self.asked_in:
-            self.unexpected(msg, "not the answer awaited")
+            self.late(msg, "not the answer awaited")
         elif msg.msg_type == MsgType.ACCEPT:
             self._partnered(msg.robot_id, giver=True, deal=self.asked_in)
         else:

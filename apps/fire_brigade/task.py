@@ -7,6 +7,16 @@ there too. When both are at the meeting point the giver's Action layer hands the
 bucket over, and the giver sends ``Handover``; the receiver's Action layer then
 takes it. Each side reports ``"Exchanged"`` up the stack. A solo leg (``"Carry"``)
 is a move followed by ``"Moved"``.
+
+Over a lossy network the hand-over must still be all or nothing. The receiver
+holds out its hands to the giver (``"Accept"``) before it drives to the meeting
+point, and the giver's hand-over succeeds only into held-out hands. At the point
+each robot says "I am here" every ``timeout`` until it knows the partner is there
+too. A robot that hears nothing from its partner for ``patience`` seconds gives
+up: the giver still holds the bucket and looks for another partner; the receiver
+withdraws its hands (``"Withdraw"``) and looks into them: if the bucket is there,
+the hand-over happened and only its notice was lost; if not, no hand-over can
+happen any more. Either way both robots agree with what physically happened.
 """
 
 from __future__ import annotations
@@ -14,9 +24,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cas_async import Message, MsgType
+from cas_async import Message, MsgType, RequestTimeout
 
-from .base import BrigadeLayer, Params
+from .base import EARLY, BrigadeLayer, Params
 from .messages import ChangeStatus, CompletionStatus, Handover, Meeting
 
 __all__ = ["Task"]
@@ -30,10 +40,11 @@ class _Meeting:
     """One partnership's progress at the meeting point."""
 
     plan: ChangeStatus
+    heard: float  # when the partner was last heard of (or the robot arrived)
     arrived: bool = False
     partner_arrived: bool = False
     handed_over: bool = False  # the receiver got the giver's Handover
-    swapped: bool = False
+    call_due: float = math.inf  # when to say "I am here" again
 
 
 class Task(BrigadeLayer):
@@ -61,17 +72,40 @@ class Task(BrigadeLayer):
             else:
                 await self._act(ChangeStatus("Move", x=x, y=y))
 
+    async def inner_process(self) -> None:
+        """At a meeting point: call the partner again, or give a silent partner up."""
+        now = self.clock.now()
+        for partner, meeting in list(self.meetings.items()):
+            if not meeting.arrived:
+                continue
+            if now >= meeting.heard + self.params.patience - EARLY:
+                await self._give_up(partner, meeting)
+            elif now >= meeting.call_due - EARLY:
+                self._call(partner, meeting)
+
+    def _call(self, partner: int, meeting: _Meeting) -> None:
+        """Says "I am here" until the partner is known there (the receiver: and handed over)."""
+        waiting = not meeting.partner_arrived or not (
+            meeting.plan.has_bucket or meeting.handed_over
+        )
+        if waiting:
+            self.send(partner, Meeting(meeting.plan.deal, msg_type=MsgType.NEGOTIATION))
+        meeting.call_due = self.clock.now() + self.params.timeout
+        self.wake_after(self.params.timeout)
+
     async def store_intra_msg(self, msg: Message) -> None:
         """A meeting or a solo leg from above."""
         if not isinstance(msg, ChangeStatus):
             self.unexpected(msg, "the Task layer expects ChangeStatus")
         elif msg.status == "Meeting":
-            meeting = self.meetings[msg.partner] = _Meeting(msg)
+            if not msg.has_bucket:  # hands out to the giver, and to nobody else
+                await self._act(ChangeStatus("Accept", partner=msg.partner))
+            meeting = self.meetings[msg.partner] = _Meeting(msg, self.clock.now())
             if self.params.mobile:
                 await self._go_to(msg.x, msg.y)
             meeting.arrived = True
-            # "I am here", as a request the partner answers once it is there too.
-            self.send(msg.partner, Meeting(msg.deal, msg_type=MsgType.NEGOTIATION))
+            meeting.heard = max(meeting.heard, self.clock.now())
+            self._call(msg.partner, meeting)
             await self._progress(msg.partner)
         elif msg.status == "Carry":
             await self._go_to(msg.x, msg.y)
@@ -82,17 +116,20 @@ class Task(BrigadeLayer):
 
     async def handle_msg(self, msg: Message) -> None:
         """The partner's Meeting (it is there) or Handover (the bucket is ours)."""
-        meeting = self.meetings.get(msg.robot_id)
         if not isinstance(msg, Meeting | Handover):
             self.unexpected(msg, "the Task layer only exchanges Meeting and Handover")
             return
+        if isinstance(msg, Handover) and msg.msg_type == MsgType.NEGOTIATION:
+            # Sent only once the bucket is in this robot's hands: always true, and the
+            # giver stops asking once it hears so.
+            self.reply(msg, Handover(msg.bucket, msg.deal))
+        meeting = self.meetings.get(msg.robot_id)
         if meeting is None or msg.deal != meeting.plan.deal:
-            # When both robots arrive at nearly the same time their Meeting messages
-            # cross, and the second one comes after the swap, perhaps even during a new
-            # partnership of the same two robots: it belongs to a finished deal.
-            if isinstance(msg, Handover):
-                self.unexpected(msg, f"no meeting with robot {msg.robot_id} for this deal")
+            # Calls cross: the partner's last "I am here" may come after the swap, or
+            # after this robot gave up, even during a new partnership of the two.
+            self.late(msg, f"no meeting with robot {msg.robot_id} for this deal")
             return
+        meeting.heard = self.clock.now()
         if isinstance(msg, Meeting):
             meeting.partner_arrived = True
             if msg.msg_type == MsgType.NEGOTIATION and meeting.arrived:
@@ -106,8 +143,8 @@ class Task(BrigadeLayer):
 
     async def _progress(self, partner: int) -> None:
         """Swap the bucket once both robots are there (the giver acts, the receiver follows)."""
-        meeting = self.meetings[partner]
-        if meeting.swapped or not (meeting.arrived and meeting.partner_arrived):
+        meeting = self.meetings.get(partner)
+        if meeting is None or not (meeting.arrived and meeting.partner_arrived):
             return
         plan = meeting.plan
         swap = ChangeStatus(
@@ -115,17 +152,49 @@ class Task(BrigadeLayer):
         )
         if plan.has_bucket:
             done = await self._act(swap)
-            self.send(partner, Handover(plan.bucket, plan.deal))
+            if done.has_bucket:  # the partner withdrew its hands: it gave up on us
+                del self.meetings[partner]
+                self._report("Abandoned", plan, done)
+                return
+            del self.meetings[partner]
+            self._report("Exchanged", plan, done)
+            await self._notify(partner, plan)
         elif meeting.handed_over:
-            done = await self._act(swap)
-        else:
-            return  # there, but the bucket is not ours yet
-        meeting.swapped = True
+            del self.meetings[partner]
+            self._report("Exchanged", plan, await self._act(swap))
+
+    async def _notify(self, partner: int, plan: ChangeStatus) -> None:
+        """Tells the receiver its hands hold the bucket (it would find out by itself anyway)."""
+        try:
+            await self.request(
+                partner,
+                Handover(plan.bucket, plan.deal),
+                timeout=self.params.timeout,
+                retries=self.params.retries,
+            )
+        except RequestTimeout:
+            self.log.info("robot %d never confirmed the hand-over", partner)
+
+    async def _give_up(self, partner: int, meeting: _Meeting) -> None:
+        """The partner stayed silent for ``patience`` seconds: end the meeting as it stands."""
         del self.meetings[partner]
+        plan = meeting.plan
+        self.log.info("robot %d silent for %g s: meeting given up", partner, self.params.patience)
+        if plan.has_bucket:  # the giver never handed over: it still holds the bucket
+            self._report("Abandoned", plan, await self._act(ChangeStatus("Where")))
+            return
+        withdrawn = await self._act(ChangeStatus("Withdraw", partner=partner, bucket=plan.bucket))
+        if withdrawn.has_bucket:  # handed over; only the notice was lost
+            swap = ChangeStatus("SwapBucket", partner=partner, bucket=plan.bucket)
+            self._report("Exchanged", plan, await self._act(swap))
+        else:
+            self._report("Abandoned", plan, withdrawn)
+
+    def _report(self, status: str, plan: ChangeStatus, done: CompletionStatus) -> None:
         self.send_up(
             ChangeStatus(
-                "Exchanged",
-                partner=partner,
+                status,
+                partner=plan.partner,
                 x=self.x,
                 y=self.y,
                 has_bucket=done.has_bucket,  # a Sink disposes of what it receives
@@ -133,5 +202,6 @@ class Task(BrigadeLayer):
                 sink=plan.sink,
                 sink_x=plan.sink_x,
                 sink_y=plan.sink_y,
+                deal=plan.deal,
             )
         )

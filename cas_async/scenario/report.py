@@ -221,7 +221,7 @@ def summary_table(result: RunResult) -> str:
     rows.append(("distance per robot", distance_text, ""))
     rows.append(("messages internal", _counts_parts(result.messages_internal, total=True), ""))
     rows.append(("messages external", _counts_parts(result.messages_external, total=True), ""))
-    rows.append(("protocol errors", _counts_parts(result.protocol_errors, total=False), ""))
+    rows.append(("messages dropped", _counts_parts(result.protocol_errors, total=False), ""))
     if result.faults is not None:
         rows.append(("faults", _faults_parts(result.faults), ""))
     if result.groups:

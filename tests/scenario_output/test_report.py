@@ -190,7 +190,7 @@ def test_summary_table_of_a_completed_run() -> None:
         "distance per robot    mean 14.2  max 30.1  total 42.6",
         "messages internal     Pick 1,000, ChangeStatus 812, CompletionStatus 301 (total 2,113)",
         "messages external     RequestPartner 190, Meet 57 (total 247)",
-        "protocol errors       none",
+        "messages dropped      none",
         "robots                Generator 1, Transporter 3, Sink 1",
         "idle fraction         0.25",
         "refills               3",
@@ -214,7 +214,7 @@ def test_summary_table_of_an_unfinished_run_says_so() -> None:
     assert "buckets delivered     2 of 4" in table
     assert "bucket travel time    n/a (no values)" in table
     assert "distance per robot    n/a (no values)" in table
-    assert "protocol errors       unknown_type 5, late_reply 2" in table
+    assert "messages dropped      unknown_type 5, late_reply 2" in table
 
 
 def test_summary_table_shows_the_error_of_a_failed_run() -> None:
