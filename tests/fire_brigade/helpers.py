@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import cas_async
@@ -14,11 +14,16 @@ VIRTUAL = ("run.virtual=true", 'run.transport="memory"')
 
 
 def run_checked(
-    scenario: Path | str, overrides: Sequence[str] = (), *, virtual: bool = True
+    scenario: Path | str,
+    overrides: Sequence[str] = (),
+    *,
+    virtual: bool = True,
+    observe: Callable[[Environment], None] | None = None,
 ) -> tuple[RunResult, Trace, int]:
     """Runs a scenario with the full item audit after every item event.
 
-    Returns the result, the trace, and how many times the audit ran.
+    Returns the result, the trace, and how many times the audit ran. ``observe``
+    is also called with the Environment before the robots start.
     """
     loaded = load_scenario(scenario, [*(VIRTUAL if virtual else ()), *overrides])
     audits = 0
@@ -32,6 +37,8 @@ def run_checked(
             audits += 1
 
         ledger.subscribe(check)
+        if observe is not None:
+            observe(environment)
 
     result, trace = cas_async.run(
         run_scenario(loaded, observe=audit_every_event), virtual=loaded.run.virtual

@@ -1,0 +1,121 @@
+"""The Fire Brigade over a lossy network: every bucket arrives, and hand-overs are all or nothing.
+
+Each shipped scenario runs with 10% and 30% of datagrams lost, plus duplication,
+reordering and delay, in virtual time. The bucket ledger is audited after every
+item event. Every Task layer's report of a meeting's end is recorded, and checked
+against what physically happened (the ledger's transfers): both robots of a
+hand-over report it, and a meeting reported given up moved no bucket.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from apps.fire_brigade.messages import ChangeStatus, CompletionStatus
+from apps.fire_brigade.task import Task
+from cas_async import Environment, ItemEvent, ItemEventKind
+from tests.fire_brigade.helpers import SCENARIOS, run_checked
+
+SHIPPED = sorted(SCENARIOS.glob("*.toml"))
+
+
+def faults(loss: float) -> list[str]:
+    return [
+        f"faults.loss={loss}",
+        "faults.duplicate=0.05",
+        "faults.reorder=0.05",
+        "faults.delay=[0.0, 0.05]",
+        "run.max_time=1000",
+    ]
+
+
+Report = tuple[int, str, int, int, bool, int | None]
+"""A meeting's end as a Task layer reported it: (robot, status, partner, bucket, whether
+the robot was the giver, who held the bucket at that instant)."""
+
+
+class Reports(list[Report]):
+    """Every meeting's end; ``environment`` (set by a test) tells who held the bucket."""
+
+    environment: Environment | None = None
+
+
+@pytest.fixture
+def reports(monkeypatch: pytest.MonkeyPatch) -> Reports:
+    """Records every meeting's end, as the robot's Task layer reports it up the stack."""
+    seen = Reports()
+    report = Task._report
+
+    def recording(self: Task, status: str, plan: ChangeStatus, done: CompletionStatus) -> None:
+        ledger = None if seen.environment is None else seen.environment.items
+        holder = None if ledger is None else ledger.holder(plan.bucket)
+        seen.append((self.robot_id, status, plan.partner, plan.bucket, plan.has_bucket, holder))
+        report(self, status, plan, done)
+
+    monkeypatch.setattr(Task, "_report", recording)
+    return seen
+
+
+@pytest.mark.parametrize("loss", [0.1, 0.3])
+@pytest.mark.parametrize("scenario", SHIPPED, ids=[path.stem for path in SHIPPED])
+@pytest.mark.parametrize("seed", [1, 2])
+def test_every_scenario_delivers_every_bucket_despite_loss(
+    scenario: Path, loss: float, seed: int, reports: Reports
+) -> None:
+    result, _, audits = run_checked(scenario, [*faults(loss), f"run.seed={seed}"])
+    assert result.status.value == "completed", result.error
+    assert len(result.travel_times) == result.target
+    assert audits >= result.delivered
+    assert result.faults is not None
+    assert result.faults["lost"] > 0
+    assert Counter(status for _, status, *_ in reports)["Exchanged"] > 0
+
+
+def test_hand_overs_are_all_or_nothing(reports: Reports) -> None:
+    """Both robots report each transfer, and every report agrees with who holds the bucket."""
+    transfers: list[tuple[int, int, int]] = []
+    times: list[float] = []
+    recent: list[tuple[int, int, int]] = []  # too close to the end to be reported by both
+
+    def watch(environment: Environment) -> None:
+        reports.environment = environment
+
+        def on_item(event: ItemEvent) -> None:
+            if event.kind is ItemEventKind.TRANSFERRED:
+                assert event.receiver is not None
+                transfers.append((event.item, event.robot, event.receiver))
+                times.append(event.t)
+
+        environment.items.subscribe(on_item)
+
+    # A short patience: robots give up on partners that are merely slow, too, so the
+    # withdraw-and-look path runs often, racing real hand-overs.
+    lossy = [*faults(0.3), "run.seed=5", "messaging.patience=2.0"]
+    result, _, _ = run_checked(SCENARIOS / "thesis_5_8_2.toml", lossy, observe=watch)
+    assert result.status.value == "completed", result.error
+    assert any(status == "Abandoned" for _, status, *_ in reports)
+    given = {(r, b) for r, s, _, b, giver, _ in reports if s == "Exchanged" and giver}
+    taken = {(r, b) for r, s, _, b, giver, _ in reports if s == "Exchanged" and not giver}
+    # The run ends with the last delivery: a hand-over just before may not have been
+    # confirmed yet (the receiver would know within patience + the Handover retries).
+    settled = result.sim_time - 2.0 - 7 * 0.5
+    recent.extend(x for x, t in zip(transfers, times, strict=True) if t > settled)
+    assert len(given) == len(transfers)
+    assert len(taken) >= len(transfers) - len(recent)
+    for bucket, giver, receiver in transfers:
+        assert (giver, bucket) in given, f"robot {giver} never reported giving bucket {bucket}"
+        if (bucket, giver, receiver) not in recent:
+            assert (receiver, bucket) in taken, f"robot {receiver} never reported taking {bucket}"
+    for robot, status, _, bucket, giver, holder in reports:
+        # A giver holds the bucket after a meeting given up, and not after an exchange;
+        # a receiver the other way round (or its Sink retired the bucket: no holder).
+        holds = holder == robot
+        if giver:
+            assert holds == (status == "Abandoned"), (robot, status, bucket, holder)
+        elif status == "Abandoned":
+            assert not holds, (robot, status, bucket, holder)
+        else:
+            assert holds or holder is None, (robot, status, bucket, holder)
