@@ -97,9 +97,20 @@ class Channel(Generic[T]):
             await waiter
         self._nudged = False
 
+    @property
+    def crowded(self) -> bool:
+        """Whether more than half the limit is pending (senders held back wait for less)."""
+        return len(self._items) > self._low
+
     async def room(self) -> None:
-        """Returns once at most half the limit is pending (at once if so already)."""
-        while len(self._items) > self._low:
-            waiter = asyncio.get_running_loop().create_future()
-            self._room_waiters.append(waiter)
-            await waiter
+        """Waits until at most half the limit is pending, or :meth:`release_room_waiters`."""
+        waiter = asyncio.get_running_loop().create_future()
+        self._room_waiters.append(waiter)
+        await waiter
+
+    def release_room_waiters(self) -> None:
+        """Wakes every sender waiting in :meth:`room`, to look again at why it waits."""
+        waiters, self._room_waiters = self._room_waiters, []
+        for waiter in waiters:
+            if not waiter.done():
+                waiter.set_result(None)

@@ -22,10 +22,12 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Final, TextIO
 
+from .errors import ConfigurationError
 from .runner import run
 from .scenario import RunResult, RunStatus, Scenario, ScenarioError, load_scenario, run_scenario
 from .scenario.report import summary_table, write_results
 from .scenario.trace import Trace
+from .swarm_key import SwarmKey
 
 __all__ = ["main"]
 
@@ -78,6 +80,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     runner.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     runner.add_argument(
+        "--key-file",
+        type=Path,
+        metavar="FILE",
+        help="swarm key (hex) to sign and check every datagram; default: the "
+        f"{SwarmKey.ENV_VAR} environment variable, if set (never the scenario file)",
+    )
+    runner.add_argument(
         "--set",
         action="append",
         default=[],
@@ -104,7 +113,9 @@ def _overrides(args: argparse.Namespace) -> list[str]:
     return overrides
 
 
-async def _run_until_signalled(scenario: Scenario, stream: TextIO) -> tuple[RunResult, Trace]:
+async def _run_until_signalled(
+    scenario: Scenario, stream: TextIO, key: SwarmKey | None
+) -> tuple[RunResult, Trace]:
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     handled = []
@@ -115,7 +126,7 @@ async def _run_until_signalled(scenario: Scenario, stream: TextIO) -> tuple[RunR
         except (NotImplementedError, RuntimeError):  # not the main thread, or no support
             pass
     try:
-        return await run_scenario(scenario, progress_to=stream, stop=stop)
+        return await run_scenario(scenario, progress_to=stream, stop=stop, key=key)
     finally:
         for signum in handled:
             loop.remove_signal_handler(signum)
@@ -144,15 +155,22 @@ def _command_run(args: argparse.Namespace, stdout: TextIO, stderr: TextIO) -> in
     except ScenarioError as exc:
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE
+    try:
+        key = SwarmKey.from_file(args.key_file) if args.key_file else SwarmKey.from_env()
+    except ConfigurationError as exc:
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
     out = args.out or Path("runs") / f"{scenario.path.stem}-seed{scenario.run.seed}"
     try:  # before the run: a long run must not end in "cannot write"
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
         return EXIT_USAGE
-    result, trace = run(_run_until_signalled(scenario, stderr), virtual=scenario.run.virtual)
+    result, trace = run(_run_until_signalled(scenario, stderr, key), virtual=scenario.run.virtual)
     with _signals_deferred() as signalled:  # what was measured is written whatever comes
         print(summary_table(result), file=stdout)
+        if result.traceback:
+            print(result.traceback, file=stderr)
         written = _write_outputs(result, trace, scenario, out, not args.no_plots)
         print(f"wrote {', '.join(path.name for path in written)} to {out}/", file=stdout)
     return EXIT_INTERRUPTED if signalled else _STATUS_EXIT[result.status]

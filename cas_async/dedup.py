@@ -85,6 +85,12 @@ class SenderWindows:
         window.mask |= bit
         return FRESH
 
+    def forget(self, sender: RobotId, msg_id: int) -> None:
+        """Unmarks ``msg_id`` from ``sender`` (it was not delivered after all)."""
+        window = self._windows.get(sender)
+        if window is not None and 0 <= window.highest - msg_id < WINDOW:
+            window.mask &= ~(1 << (window.highest - msg_id))
+
     def heard(self, sender: RobotId) -> float | None:
         """When ``sender`` was last heard (the ``now`` of its latest message), or ``None``."""
         window = self._windows.get(sender)
@@ -95,28 +101,40 @@ class SenderWindows:
 
 
 class ReplyCache:
-    """The encoded replies to the latest requests answered, by (asker, request id).
+    """The encoded replies to each asker's latest requests.
+
+    A requester re-sends only while it waits, and waits on few requests at once to
+    the same robot, so a few replies per asker cover every repetition; memory then
+    follows the number of askers, not the number of requests ever answered.
 
     Args:
-        size: replies kept; the oldest goes first.
+        per_asker: replies kept per asker; its oldest goes first.
+        askers: askers kept; the one first seen goes first.
     """
 
-    __slots__ = ("_replies", "_size")
+    __slots__ = ("_askers", "_per_asker", "_replies")
 
-    def __init__(self, size: int = 1024) -> None:
-        self._replies: dict[tuple[RobotId, int], bytes] = {}
-        self._size = size
+    def __init__(self, per_asker: int = 16, askers: int = 1024) -> None:
+        self._replies: dict[RobotId, dict[int, bytes]] = {}
+        self._per_asker = per_asker
+        self._askers = askers
 
     def keep(self, asker: RobotId, request_id: int, data: bytes) -> None:
         """Remembers ``data`` as the reply sent to ``asker``'s request ``request_id``."""
         replies = self._replies
-        replies[(asker, request_id)] = data
-        if len(replies) > self._size:
-            del replies[next(iter(replies))]
+        kept = replies.get(asker)
+        if kept is None:
+            if len(replies) >= self._askers:
+                del replies[next(iter(replies))]
+            kept = replies[asker] = {}
+        kept[request_id] = data
+        if len(kept) > self._per_asker:
+            del kept[next(iter(kept))]
 
     def get(self, asker: RobotId, request_id: int) -> bytes | None:
         """The reply sent to that request, if still kept."""
-        return self._replies.get((asker, request_id))
+        kept = self._replies.get(asker)
+        return None if kept is None else kept.get(request_id)
 
     def __len__(self) -> int:
-        return len(self._replies)
+        return sum(len(kept) for kept in self._replies.values())

@@ -330,9 +330,10 @@ class Layer:
             UnknownRobotError: the transport knows no such robot.
         """
         robot = self._check_live()
-        if not (
-            msg.msg_id and msg.robot_id == robot.robot_id and msg.src_layer == msg.dst_layer
-        ) or msg.src_layer != self._level:
+        if (
+            not (msg.msg_id and msg.robot_id == robot.robot_id and msg.src_layer == msg.dst_layer)
+            or msg.src_layer != self._level
+        ):
             raise RuleViolation(
                 f"{self._log.prefix}resend() needs a message this layer sent, got {msg!r}"
             )
@@ -431,6 +432,7 @@ class Layer:
             raise RuleViolation(f"{self._log.prefix}request() to its own robot {robot_id}")
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
+        msg = _owned(msg)
         msg.msg_type = _NEGOTIATION
         self._stamp(robot, msg, self._level)
         data = robot._codec.encode(msg)  # type: ignore[union-attr]
@@ -486,9 +488,15 @@ class Layer:
         by_type = counters.internal_by_type
         by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
         self._carry(msg)
+        # While it waits for the answer this layer handles nothing: a layer that waits
+        # for room in this layer's inbox must not wait for it (see layer_loop).
+        asked = robot.layers[level]
+        self._waiting_on = asked
+        self._inbox.release_room_waiters()
         try:
             return await reply
         finally:
+            self._waiting_on = None
             self._requests.forget(msg.msg_id)
 
     def _expect(
@@ -515,75 +523,20 @@ class Layer:
 
     # -- delivery from the robot -----------------------------------------------------
 
-    def _accept_external(self, msg: Message) -> None:
-        """Takes an external message from the robot (already checked for level)."""
+    def _accept_external(self, msg: Message) -> bool:
+        """Takes an external message from the robot (already checked for level).
+
+        Returns ``False`` when the inbox was full (the drop is counted).
+        """
         if msg.corr_id:
             outcome = self._requests.take(msg)
             if outcome is not _NOT_A_REPLY:
                 if outcome is _DELIVERED:
                     self._counters.received_external += 1
-                return
+                return True
         if not self._inbox.offer(msg):
             self.robot._drop(
                 "queue_full", f"{type(self).__name__}(L{self._level}) inbox full, {msg!r}"
             )
-
-    # -- the loop --------------------------------------------------------------------
-
-    async def _run(self) -> None:
-        """Thesis Fig. 10: inner process, then messages in batches, until stopped."""
-        robot = self.robot
-        inbox = self._inbox
-        counters = self._counters
-        has_inner = type(self).inner_process is not Layer.inner_process
-        has_condition = self._has_termination_condition()
-        await self.inner_process()
-        if self._congested is not None:
-            await self._wait_for_room()
-        if has_condition:
-            robot._layer_may_be_done(self)
-        while True:
-            if not inbox:
-                await inbox.wait()
-            while inbox:  # every message here is for this layer: forwarding is done
-                msg = inbox.pop()
-                if msg.src_layer == msg.dst_layer:
-                    counters.received_external += 1
-                    await self.handle_msg(msg)
-                else:
-                    counters.received_internal += 1
-                    if msg.msg_type == _NEGOTIATION and not msg.corr_id:
-                        response = await self.get_intra_msg_reply(msg)
-                        if response is not None:
-                            self._reply_internal(robot, msg, response)
-                    else:
-                        await self.store_intra_msg(msg)
-                if self._congested is not None:
-                    await self._wait_for_room()
-            if has_inner:
-                await self.inner_process()
-                if self._congested is not None:
-                    await self._wait_for_room()
-            if has_condition:
-                robot._layer_may_be_done(self)
-
-    async def _wait_for_room(self) -> None:
-        """Back-pressure: waits while a layer this one filled drains to half its limit.
-
-        A layer never waits on one that waits, along a chain, on it: two layers
-        flooding each other would wait forever. One of them goes on instead, which
-        drains the other's sender.
-        """
-        target = self._congested
-        self._congested = None
-        assert target is not None
-        along: Layer | None = target
-        while along is not None:
-            if along is self:
-                return
-            along = along._waiting_on
-        self._waiting_on = target
-        try:
-            await target._inbox.room()
-        finally:
-            self._waiting_on = None
+            return False
+        return True

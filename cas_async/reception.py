@@ -119,8 +119,9 @@ class Reception:
             seen = self.senders.check(claimed, msg.msg_id, self._now())  # type: ignore[misc]
             if seen:
                 self._repeated(msg, seen == DUPLICATE)
-            else:
-                robot.layers[level]._accept_external(msg)
+            elif not robot.layers[level]._accept_external(msg):
+                # Refused by a full inbox: a copy sent again must not count as a repeat.
+                self.senders.forget(claimed, msg.msg_id)
 
     def _repeated(self, msg: Message, duplicate: bool) -> None:
         robot = self._robot

@@ -24,8 +24,12 @@ from .message import Message
 
 __all__ = ["PendingRequests", "ReplyOutcome"]
 
-_MEMORY: Final = 1024
-"""Timed-out and answered request ids remembered per layer, to drop late or repeated replies."""
+_MEMORY: Final = 256
+"""Timed-out and answered request ids remembered per layer, to drop late or repeated replies.
+
+Repeated external replies are already refused by the robot's duplicate check (by
+message id), so these only name what reaches a layer anyway; a small memory
+keeps a busy layer's footprint flat."""
 
 
 class ReplyOutcome(enum.Enum):
@@ -132,6 +136,9 @@ class PendingRequests:
                 "reply_from_wrong_place",
                 f"{reply!r} claims to be the reply from {waiter.what}",
             )
+            return ReplyOutcome.DROPPED
+        if waiter.future.cancelled():  # the asker stopped waiting (the robot is stopping)
+            self._drop("late_reply", f"{reply!r} arrived after its request was cancelled")
             return ReplyOutcome.DROPPED
         if waiter.future.done():
             self._drop("duplicate_reply", f"{reply!r} answers a request already answered")

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from .errors import LayerError
+from .layer_loop import run_loop
 
 if TYPE_CHECKING:
     from .layer import Layer
@@ -59,7 +60,7 @@ async def run_layer(robot: Robot, layer: Layer, policy: RestartPolicy | None) ->
     failures: deque[float] = deque()
     while True:
         try:
-            await layer._run()
+            await run_loop(layer)
             return
         except asyncio.CancelledError as exc:
             task = asyncio.current_task()

@@ -391,3 +391,58 @@ def test_signals_while_writing_are_deferred() -> None:
         os.kill(os.getpid(), signal.SIGTERM)
     assert received == [signal.SIGINT, signal.SIGTERM]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+# -- a layer that fails, with and without restarts -------------------------------------------
+
+CRASHING: Final = "strategy.name=tests.fire_brigade.crashing:CrashOnce"
+
+
+def test_a_failing_layer_fails_the_run_with_exit_1_and_results(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    finished = run_cli("run", SHIPPED, *FAST, "--set", CRASHING, "--no-plots", "--out", out)
+    assert finished.code == 1, finished.stdout + finished.stderr
+    results = read_results(out)
+    assert results["status"] == "failed"
+    assert "layer 1 (CrashOnce) failed: RuntimeError" in results["error"]
+    assert "the strategy broke down" in results["traceback"]
+    assert "Traceback (most recent call last)" in finished.stderr
+    assert "in choose" in finished.stderr  # the traceback reaches the raising line
+
+
+def test_with_restarts_a_failing_layer_is_restarted_and_the_run_completes(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    finished = run_cli(
+        "run", SHIPPED, *FAST, "--set", CRASHING, "--set", "run.restarts=1", "--no-plots",
+        "--out", out,
+    )  # fmt: skip
+    assert finished.code == 0, finished.stdout + finished.stderr
+    assert read_results(out)["status"] == "completed"
+    assert "failed, restarting (restart 1 of 1 allowed within 60 s)" in finished.stderr
+
+
+# -- the swarm key ---------------------------------------------------------------------------
+
+
+def test_a_key_file_signs_every_datagram_of_a_udp_run(tmp_path: Path) -> None:
+    key_file = tmp_path / "swarm.key"
+    key_file.write_text("ab" * 32 + "\n")
+    key_file.chmod(0o600)
+    out = tmp_path / "out"
+    finished = run_cli(
+        "run", SHIPPED, "--set", "mission.buckets=2", "--time-factor", "50", "--no-plots",
+        "--key-file", key_file, "--out", out,
+    )  # fmt: skip
+    assert finished.code == 0, finished.stdout + finished.stderr
+    assert read_results(out)["protocol_errors"] == {}
+
+
+def test_an_unusable_key_file_is_refused_before_the_run(tmp_path: Path) -> None:
+    key_file = tmp_path / "short.key"
+    key_file.write_text("abcd\n")
+    key_file.chmod(0o600)
+    finished = run_cli("run", SHIPPED, *FAST, "--key-file", key_file, "--out", tmp_path / "o")
+    assert finished.code == 2
+    assert finished.stderr.startswith("error:")
+    assert str(key_file) in finished.stderr
+    assert finished.stdout == ""

@@ -63,6 +63,7 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "DUPLICATE",
         "STALE",
         "run_layer",
+        "run_loop",
         "Receiver",
     }
     exported = set(cas_async.__all__)

@@ -154,6 +154,7 @@ class FireBrigade:
                     transport=setup.transport,
                     clock=setup.clock,
                     messages=MESSAGES,
+                    restart=setup.restart,
                 )
             )
             groups[kind.name.title()].append(robot_id)

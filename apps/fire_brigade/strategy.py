@@ -140,6 +140,13 @@ class Strategy(BrigadeLayer):
         self.answer_due = self.clock.now() + self.params.timeout
         self.wake_after(self.params.timeout)
 
+    async def on_restart(self, error: Exception) -> None:
+        """After a failure (with ``[run] restarts``): drop the round under way, search anew."""
+        self.asked = -1
+        if self.bucket >= 0 and not self.partners:  # from inner_process, not from here
+            self.retry_at = self.clock.now()
+            self.wake_after(0.0)
+
     def _retry_later(self) -> None:
         # A timer, not a sleep: requests keep being answered meanwhile.
         self.retry_at = self.clock.now() + self.params.retry_interval

@@ -22,6 +22,7 @@ import numpy as np
 from ..clock import Clock
 from ..robot import Robot
 from ..sim.environment import Environment
+from ..supervision import RestartPolicy
 from ..transport.base import Transport
 
 __all__ = ["Mission", "SimulationApp", "SimulationSetup"]
@@ -39,6 +40,8 @@ class SimulationSetup:
         transport: the transport every robot must use.
         rng: the run's seeded random generator; use it (or seeds drawn from it)
             for every random choice, so a seed reproduces a run.
+        restart: the restart policy for every robot (``Robot(restart=...)``), from
+            ``[run] restarts``; ``None``: a layer that raises fails the run.
     """
 
     config: Any
@@ -47,6 +50,7 @@ class SimulationSetup:
     clock: Clock
     transport: Transport
     rng: np.random.Generator
+    restart: RestartPolicy | None = None
 
 
 @dataclass(slots=True)

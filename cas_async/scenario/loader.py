@@ -46,6 +46,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, Literal, cast
 
+from ..supervision import RestartPolicy
 from ..transport.faulty import Faults
 from .app import SimulationApp
 from .config import ScenarioError, _show, from_toml, setting
@@ -80,6 +81,10 @@ class RunConfig:
         max_time: simulated seconds after which the run gives up (timed out).
         trace_interval: simulated seconds between two samples of robot positions.
         progress_interval: wall seconds between two plain progress lines.
+        restarts: how many times a layer that raises is restarted (see
+            :mod:`cas_async.supervision`) within ``restart_window`` simulated
+            seconds; 0 (the default): the first failure fails the run.
+        restart_window: the window over which ``restarts`` are counted.
     """
 
     seed: int = setting(0, ge=0, doc="seed of the run's random generator")
@@ -89,6 +94,19 @@ class RunConfig:
     max_time: float = setting(3600.0, gt=0, doc="simulated seconds before the run gives up")
     trace_interval: float = setting(1.0, gt=0, doc="simulated seconds between position samples")
     progress_interval: float = setting(1.0, gt=0, doc="wall seconds between progress lines")
+    restarts: int = setting(
+        0, ge=0, doc="times a failed layer is restarted within restart_window; 0: the run fails"
+    )
+    restart_window: float = setting(
+        60.0, gt=0, doc="simulated seconds over which restarts are counted"
+    )
+
+    @property
+    def restart(self) -> RestartPolicy | None:
+        """The restart policy robots get, ``None`` when a failed layer fails the run."""
+        if not self.restarts:
+            return None
+        return RestartPolicy(self.restarts, self.restart_window)
 
 
 @dataclass(frozen=True, slots=True)

@@ -85,6 +85,7 @@ def results_dict(result: RunResult) -> dict[str, Any]:
         "seed": result.seed,
         "status": str(result.status),
         "error": result.error,
+        "traceback": result.traceback,
         "target": result.target,
         "created": result.created,
         "delivered": result.delivered,

@@ -36,6 +36,7 @@ class RunResult:
         seed: the seed of the run.
         status: how it ended.
         error: the failure's message when ``status`` is FAILED.
+        traceback: the failure's traceback (of the layer's own exception).
         target: items to deliver for the mission to be complete.
         created: items created during the run.
         delivered: items delivered (retired).
@@ -64,6 +65,7 @@ class RunResult:
     seed: int
     status: RunStatus = RunStatus.COMPLETED
     error: str | None = None
+    traceback: str | None = None
     target: int = 0
     created: int = 0
     delivered: int = 0

@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+import traceback
 from collections.abc import Callable
 from typing import TextIO
 
@@ -23,6 +24,8 @@ from ..errors import LayerError
 from ..sim.environment import Environment
 from ..sim.items import ItemEvent, ItemEventKind
 from ..swarm import Swarm
+from ..swarm_key import SwarmKey
+from ..transport.authenticated import AuthenticatedTransport
 from ..transport.base import Transport
 from ..transport.faulty import FaultyTransport
 from ..transport.memory import MemoryTransport
@@ -36,15 +39,15 @@ from .trace import Trace
 __all__ = ["run_scenario"]
 
 
-def _transport(scenario: Scenario, clock: Clock) -> Transport:
-    """The run's transport, wrapped in the ``[faults]`` when it has any."""
+def _transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transport:
+    """The run's transport: the ``[faults]`` on the wire, if any, and signed with ``key``."""
     run = scenario.run
     transport: Transport = MemoryTransport() if run.transport == "memory" else UdpTransport()
     faults = scenario.faults.as_faults()
-    if not faults.any:
-        return transport
-    seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
-    return FaultyTransport(transport, faults, seed=seed, clock=clock)
+    if faults.any:
+        seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
+        transport = FaultyTransport(transport, faults, seed=seed, clock=clock)
+    return transport if key is None else AuthenticatedTransport(transport, key)
 
 
 def _clock(scenario: Scenario) -> Clock:
@@ -59,6 +62,7 @@ async def run_scenario(
     stop: asyncio.Event | None = None,
     observe: Callable[[Environment], None] | None = None,
     wall_clock: Callable[[], float] = time.perf_counter,
+    key: SwarmKey | None = None,
 ) -> tuple[RunResult, Trace]:
     """Runs ``scenario`` to its end and returns what it measured and the position trace.
 
@@ -73,13 +77,15 @@ async def run_scenario(
         observe: called with the Environment once the robots are in it, before they
             start (a test can subscribe to ``environment.items`` there, for instance).
         wall_clock: measures the wall time.
+        key: the swarm key: every datagram is signed and checked (see
+            :class:`~cas_async.transport.authenticated.AuthenticatedTransport`).
     """
     started = wall_clock()
     run = scenario.run
     world = (scenario.world.width, scenario.world.height)
     environment = Environment()
     clock = _clock(scenario)
-    transport = _transport(scenario, clock)
+    transport = _transport(scenario, clock, key)
     setup = SimulationSetup(
         scenario.config,
         world,
@@ -87,6 +93,7 @@ async def run_scenario(
         clock,
         transport,
         np.random.default_rng(run.seed),
+        run.restart,
     )
     mission = scenario.app.build(setup)
     progress = None
@@ -125,7 +132,7 @@ async def run_scenario(
     swarm = Swarm(mission.robots)
     try:
         async with swarm:
-            result.status, result.error = await _until_done(
+            result.status, failure = await _until_done(
                 swarm,
                 clock,
                 run.max_time,
@@ -136,15 +143,18 @@ async def run_scenario(
                     t, environment, trace, progress, ledger.retired, ledger.transfers
                 ),
             )
+        if failure is not None:
+            _failed(result, failure)
     except LayerError as exc:  # raised again on the way out when a layer failed
-        result.status, result.error = RunStatus.FAILED, str(exc)
+        _failed(result, exc)
     except BaseException:
         if progress is not None:
             progress.close(final=False)  # whatever is printed next starts on a fresh line
         raise
     _measure(result, mission, swarm, environment, clock.now())
-    if isinstance(transport, FaultyTransport):  # read after the swarm closed its endpoints
-        result.faults = transport.stats
+    wire = transport.inner if isinstance(transport, AuthenticatedTransport) else transport
+    if isinstance(wire, FaultyTransport):  # read after the swarm closed its endpoints
+        result.faults = wire.stats
     result.wall_time = wall_clock() - started
     if progress is not None:
         progress.close(final=True)
@@ -174,8 +184,11 @@ async def _until_done(
     complete: asyncio.Event,
     stop: asyncio.Event | None,
     sample: Callable[[float], None],
-) -> tuple[RunStatus, str | None]:
-    """Samples every ``interval`` simulated seconds until one of the ends; returns which."""
+) -> tuple[RunStatus, BaseException | None]:
+    """Samples every ``interval`` simulated seconds until one of the ends; returns which.
+
+    The exception is that of a failed run (a layer's, or the sampling's).
+    """
 
     async def sampling() -> None:
         tick = 0
@@ -206,10 +219,17 @@ async def _until_done(
         return RunStatus.COMPLETED, None
     if waits["swarm"] in done or waits["sampling"] in done:
         error = (waits["swarm"] if waits["swarm"] in done else waits["sampling"]).exception()
-        return RunStatus.FAILED, str(error) if error is not None else "the swarm stopped"
+        return RunStatus.FAILED, error or RuntimeError("the swarm stopped")
     if "stop" in waits and waits["stop"] in done:
         return RunStatus.INTERRUPTED, None
     return RunStatus.TIMED_OUT, None
+
+
+def _failed(result: RunResult, error: BaseException) -> None:
+    """Marks the run failed, with the error and the traceback of what raised."""
+    result.status, result.error = RunStatus.FAILED, str(error)
+    cause = error.__cause__ or error
+    result.traceback = "".join(traceback.format_exception(cause)).rstrip()
 
 
 def _measure(
