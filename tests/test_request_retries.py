@@ -212,7 +212,7 @@ def test_concurrent_requests_with_retries_over_a_bad_wire_each_get_their_own_rep
         asker, answerer = Recorder(), Recorder()
         robots = [robot(1, asker, asker_net, clock), robot(2, answerer, answer_net, clock)]
         async with Swarm(robots):
-            # As many at once as the answerer keeps replies for one asker (8).
+            # Fewer at once than the answerer keeps replies for one asker.
             replies = await asyncio.gather(
                 *(asker.request(2, Query(k), timeout=1.0, retries=20) for k in range(8))
             )
