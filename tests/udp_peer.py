@@ -1,8 +1,9 @@
 """Robot 2 in its own process, for tests/test_two_processes.py.
 
 Usage: ``python -m tests.udp_peer PARENT_PORT``. Binds an OS-assigned port on
-127.0.0.1 and prints it, greets robot 1, answers its queries, and exits when robot
-1 says "bye" (or after 20 s, so a broken test never leaves it behind).
+127.0.0.1 and prints it, greets robot 1 until it hears from it, answers its queries,
+and exits when robot 1 says "bye" (or after 20 s, so a broken test never leaves it
+behind).
 """
 
 from __future__ import annotations
@@ -22,8 +23,11 @@ class Peer(Recorder):
 
     async def inner_process(self) -> None:
         await super().inner_process()
-        if self.inner_calls == 1:
+        # Greet until robot 1 answers: it refuses datagrams from robot 2 (unknown_sender)
+        # until it has read this process's port and entered it in its directory.
+        if not self.external:
             self.send(1, Note("hello from another process", [2]))
+            self.wake_after(0.05)
 
     async def handle_msg(self, msg: Message) -> None:
         await super().handle_msg(msg)  # answers Query NEGOTIATIONs
