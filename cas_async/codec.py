@@ -11,6 +11,13 @@ checks simple fields with inlined ``type(v) is int`` tests and only calls the
 slower converters of :mod:`cas_async.schema` when a field needs it. Every problem
 with untrusted bytes raises :class:`~cas_async.errors.DecodeError`; nothing is
 ever unpickled.
+
+Decoding allocates a bounded amount of memory whatever a datagram claims (see
+:attr:`Codec.max_decode_bytes`). msgpack's C unpacker reserves the slots of an
+array when it reads the array's header, before any item arrives, and keeps up to
+1024 arrays open at once; so it reads arrays of at most 256 items, and the rare
+datagram with a longer array is read again by msgpack's pure-Python unpacker,
+which only allocates for items it has actually read.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ from typing import Any, Final
 
 import msgpack
 import numpy as np
+from msgpack import fallback
 from msgpack import unpackb as _unpackb
 
 from .codegen import compiled, undispatchable
@@ -34,6 +42,27 @@ DEFAULT_MAX_DATAGRAM: Final = 64 * 1024
 
 MIN_DATAGRAM: Final = 64
 """Smallest datagram limit accepted: below it not even a header with a small field fits."""
+
+_BYTES_PER_BYTE: Final = 256
+"""Most bytes of Python objects one datagram byte decodes into, with margin.
+
+Worst cases measured with tracemalloc (tests/test_decode_limits.py): arrays nested
+in arrays, one byte each, in a bare ``list`` field, about 140 bytes per byte (a
+tuple from msgpack, then the list it becomes); chains of one-entry maps, two bytes
+each, about 115; empty maps (one byte each) about 80.
+"""
+
+_FAST_ITEMS: Final = 256
+"""Longest array msgpack's C unpacker reads; longer ones take the pure-Python unpacker."""
+
+_OPEN_ARRAYS: Final = 1024
+"""Arrays msgpack's C unpacker keeps open at once (nesting deeper is malformed)."""
+
+_RESERVED_PER_ARRAY: Final = 64
+"""An array's own allocation besides its slots: tuple header and garbage-collector link."""
+
+_DECODE_OVERHEAD: Final = 256 * 1024
+"""Fixed allowance of a decode: unpacker state, frames, one error message."""
 
 
 def _encode_default(obj: Any) -> Any:
@@ -51,6 +80,19 @@ def _encode_default(obj: Any) -> Any:
 
 class Codec:
     """Encodes and decodes the external messages of one robot.
+
+    Decoding a datagram never allocates more than :attr:`max_decode_bytes` bytes,
+    whatever it claims (arrays or maps of 2**32 items, strings of 4 GiB, arrays
+    nested 1024 deep, numpy arrays of 10**9 elements)::
+
+        max_decode_bytes = 1024 * (8 * 256 + 64) + 256 * max_size + 256 KiB
+
+    The first term (about 2 MiB) is msgpack reserving 8 bytes per declared item
+    for each of up to 1024 open arrays of up to 256 items (longer arrays are read
+    by a slower unpacker that reserves nothing); the second, the Python objects
+    built from the datagram's bytes, at most 256 bytes per byte; the third, a
+    fixed allowance. With the default 64 KiB datagrams that is about 19 MiB, all
+    of it freed when ``decode`` returns.
 
     Args:
         specs: the message types this robot accepts, by type id.
@@ -74,6 +116,12 @@ class Codec:
         self._by_id = {c.spec.type_id: c.decode for c in generated}
         self._by_class = {c.spec.cls: c for c in generated}
         self._pack = msgpack.Packer(default=_encode_default, use_bin_type=True).pack
+
+    @property
+    def max_decode_bytes(self) -> int:
+        """Most bytes decoding one datagram allocates at once (see the class docs)."""
+        reserved = _OPEN_ARRAYS * (8 * _FAST_ITEMS + _RESERVED_PER_ARRAY)
+        return reserved + _BYTES_PER_BYTE * self.max_size + _DECODE_OVERHEAD
 
     def encode(self, msg: Message) -> bytes:
         """The datagram for ``msg``.
@@ -109,17 +157,55 @@ class Codec:
         if len(data) > self.max_size:
             raise DecodeError(f"{len(data)} bytes, above the limit of {self.max_size}", "oversize")
         try:
-            t = _unpackb(data, use_list=False, strict_map_key=False)
+            # Only the array limit is given: strings, bytes, ext types and maps are
+            # limited to len(data) by default (and msgpack allocates them only once
+            # their bytes are there); every keyword costs time on this hot path.
+            t = _unpackb(data, use_list=False, strict_map_key=False, max_array_len=_FAST_ITEMS)
         except Exception as exc:  # the unpacker raises many types; all mean "malformed"
-            raise DecodeError(f"not a msgpack datagram: {type(exc).__name__}: {exc}") from None
+            t = self._unpack_long_arrays(data, exc)
+        fingerprint = self.fingerprint
         try:
-            decode = self._by_id[t[1]]
-        except Exception:  # not an array, too short, unhashable or unknown type id
-            raise undispatchable(t, self.fingerprint) from None
-        try:
-            return decode(t, self.fingerprint)  # checks the header, fingerprint included
+            try:
+                decode = self._by_id[t[1]]
+            except Exception:  # not an array, too short, unhashable or unknown type id
+                raise undispatchable(t, fingerprint) from None
+            return decode(t, fingerprint)  # checks the header, fingerprint included
+        except DecodeError:
+            raise
         except RecursionError:  # bare list/dict fields or recursive messages, nested deeply
             raise DecodeError("values nest too deeply", "wrong_type") from None
+        except Exception as exc:  # a converter's oversight must not reach the robot
+            raise DecodeError(f"cannot decode: {_brief_error(exc)}") from None
+
+    def _unpack_long_arrays(self, data: bytes, exc: Exception) -> Any:
+        """Unpacks a datagram the C unpacker refused for a long array, else explains.
+
+        The pure-Python unpacker builds arrays as items arrive, so a datagram
+        claiming long arrays it does not hold costs only what it holds; it is about
+        20 times slower, which only datagrams with arrays over 256 items pay.
+        """
+        if type(exc) is not ValueError or "max_array_len" not in str(exc):
+            raise DecodeError(f"not a msgpack datagram: {_brief_error(exc)}") from None
+        size = self.max_size  # no item, string or entry can be longer than the datagram
+        try:
+            return fallback.unpackb(
+                data,
+                use_list=False,
+                strict_map_key=False,
+                max_array_len=size,
+                max_map_len=size,
+                max_str_len=size,
+                max_bin_len=size,
+                max_ext_len=size,
+            )
+        except Exception as again:
+            raise DecodeError(f"not a msgpack datagram: {_brief_error(again)}") from None
+
+
+def _brief_error(exc: BaseException) -> str:
+    """``Type: message``, cut short: an error about hostile bytes may quote them."""
+    text = f"{type(exc).__name__}: {exc}"
+    return text if len(text) <= 200 else f"{text[:200]}..."
 
 
 def _which_field(msg: Message, spec: MessageSpec) -> str:

@@ -30,6 +30,7 @@ from typing import Any, Final
 from .errors import DecodeError, StackMismatchError
 from .fingerprint import describe_fingerprint
 from .message import HEADER_FIELDS, Message, MessageSpec, MsgType
+from .schema import _shown as shown
 
 __all__ = ["HEADER_LEN", "Compiled", "compiled", "undispatchable"]
 
@@ -62,7 +63,7 @@ def _header_problem(t: Any, fingerprint: int) -> DecodeError | None:
     theirs, tid, sender = t[0], t[1], t[4]
     if type(theirs) is not int or theirs != fingerprint:
         if type(theirs) is not int or type(sender) is not int:
-            return DecodeError(f"bad fingerprint {theirs!r} in header", "bad_header")
+            return DecodeError(f"bad fingerprint {shown(theirs)} in header", "bad_header")
         return StackMismatchError(
             f"datagram from robot {sender} has stack fingerprint {theirs:#010x} "
             f"({describe_fingerprint(theirs)}), ours is {fingerprint:#010x} "
@@ -72,10 +73,11 @@ def _header_problem(t: Any, fingerprint: int) -> DecodeError | None:
             fingerprint,
         )
     if type(tid) is not int:
-        return DecodeError(f"unknown message type id {tid!r}", "unknown_type")
+        return DecodeError(f"unknown message type id {shown(tid)}", "unknown_type")
     header = t[2:HEADER_LEN]
     if not all(type(v) is int for v in header) or t[3] not in _MSG_TYPES:
-        return DecodeError(f"bad header {header!r}: expected six ints", "bad_header")
+        values = ", ".join(map(shown, header))
+        return DecodeError(f"bad header ({values}): expected six ints", "bad_header")
     return None
 
 
@@ -87,7 +89,7 @@ def _refused(t: Any, fingerprint: int) -> DecodeError:
 def undispatchable(t: Any, fingerprint: int) -> DecodeError:
     """Why a datagram has no decoder: a bad header, another stack, or an unknown type."""
     return _header_problem(t, fingerprint) or DecodeError(
-        f"unknown message type id {t[1]!r}", "unknown_type"
+        f"unknown message type id {shown(t[1])}", "unknown_type"
     )
 
 

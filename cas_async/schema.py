@@ -43,6 +43,10 @@ _MAX_NDIM: Final = 32
 # What ndarray_to_wire writes (``array.dtype.str``): byte order, kind, item size. Anything
 # else is refused before numpy parses it (numpy accepts, and warns about, many aliases).
 _DTYPE_TEXT: Final = re.compile(r"[<>|=]?[biufc][0-9]{1,2}")
+_SHOWN_CHARS: Final = 60
+"""Characters of a value off the wire quoted in an error message at most."""
+_PATH_ENDS: Final = 8
+"""Steps of a long path shown at each end in an error message."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,6 +62,26 @@ class FieldType:
     """``list`` or ``tuple`` for ``list[T]`` / ``tuple[T, ...]`` whose elements are used
     as they are; ``elements`` is then their type, and decoders inline the check."""
     elements: type | None = None
+
+
+def _shown(value: Any) -> str:
+    """A short ``repr`` of a value off the wire, for error messages and field paths.
+
+    Untrusted values may be 64 KiB strings or arrays nested 1000 deep, whose full
+    ``repr`` is large or raises ``RecursionError``: arrays and maps are described
+    by their length only, and long texts are cut.
+    """
+    kind = type(value)
+    if kind is tuple:
+        return f"<array of {len(value)}>"
+    if kind is dict:
+        return f"<map of {len(value)}>"
+    if kind is str or kind is bytes:
+        text = repr(value[:_SHOWN_CHARS])
+        return text if len(value) <= _SHOWN_CHARS else f"{text}..."
+    if kind in (int, float, bool) or value is None:
+        return repr(value)  # at most 20 digits: msgpack integers are 64-bit
+    return f"<{kind.__name__}>"  # ExtType, Timestamp
 
 
 def _describe(value: Any) -> str:
@@ -102,19 +126,61 @@ _SIMPLE: Final[dict[Any, FieldType]] = {
 }
 
 
+class _NotPlain(Exception):
+    """Raised inside a bare container; ``steps`` collects the path while unwinding."""
+
+    def __init__(self, expected: str, value: Any) -> None:
+        super().__init__(expected)
+        self.expected = expected
+        self.value = value
+        self.steps: list[str] = []
+
+
 def _plain_convert(value: Any, path: str) -> Any:
     """Any msgpack-native value; arrays become lists (for bare ``list``/``dict``)."""
+    try:
+        return _plain(value)
+    except _NotPlain as exc:
+        steps = exc.steps[::-1]
+        if len(steps) > 2 * _PATH_ENDS:  # keep the message short, whatever the depth
+            hidden = len(steps) - 2 * _PATH_ENDS
+            steps[_PATH_ENDS:-_PATH_ENDS] = [f"...{hidden} levels..."]
+        raise _fail(path + "".join(steps), exc.expected, exc.value) from None
+
+
+def _plain(value: Any) -> Any:
+    # The path of an error is only built if there is one (on the way out): bare
+    # containers nest as deep as msgpack allows, and a path per level, each
+    # quoting the keys above it, would grow with the square of the depth.
     kind = type(value)
     if kind in (int, float, bool, str, bytes) or value is None:
         return value
     if kind is tuple:
-        return [_plain_convert(item, f"{path}[{i}]") for i, item in enumerate(value)]
+        items = []
+        for i, item in enumerate(value):
+            try:
+                items.append(_plain(item))
+            except _NotPlain as exc:
+                exc.steps.append(f"[{i}]")
+                raise
+        return items
     if kind is dict:
-        return {
-            _plain_key(key, f"{path} key"): _plain_convert(item, f"{path}[{key!r}]")
-            for key, item in value.items()
-        }
-    raise _fail(path, "a plain value", value)
+        # Converted in place: a copy would double what a map-heavy datagram costs,
+        # and the dict is the unpacker's own (when this fails, the whole field does).
+        for key, item in value.items():
+            if not (type(key) in (int, float, bool, str, bytes) or key is None):
+                failure = _NotPlain("a plain key", key)
+                failure.steps.append(" key")
+                raise failure
+            try:
+                converted = _plain(item)
+            except _NotPlain as exc:
+                exc.steps.append(f"[{_shown(key)}]")
+                raise
+            if converted is not item:
+                value[key] = converted  # an existing key: iterating on is safe
+        return value
+    raise _NotPlain("a plain value", value)
 
 
 def _plain_key(key: Any, path: str) -> Any:
@@ -166,7 +232,7 @@ def _mapping(key: FieldType, val: FieldType, name: str) -> Convert:
             raise _fail(path, name, value)
         try:
             return {
-                key.convert(k, f"{path} key"): val.convert(v, f"{path}[{k!r}]")
+                key.convert(k, f"{path} key"): val.convert(v, f"{path}[{_shown(k)}]")
                 for k, v in value.items()
             }
         except TypeError:  # a converted key is unhashable (e.g. dict[list[int], ...])
@@ -204,7 +270,16 @@ def _int_enum(kind: type[enum.IntEnum]) -> FieldType:
     return FieldType(f"{name}{sorted(members)}", convert)
 
 
+def _shown_shape(shape: tuple[Any, ...]) -> str:
+    """A refused shape, for its error message (it may hold anything, at any length)."""
+    if len(shape) > _MAX_NDIM:
+        return _shown(shape)
+    return f"[{', '.join(map(_shown, shape))}]"
+
+
 def _ndarray_convert(value: Any, path: str) -> np.ndarray[Any, Any]:
+    # Nothing is allocated for the array until the bytes present are exactly what
+    # the dtype and shape need: a datagram claiming 10**9 elements costs nothing.
     if type(value) is not tuple or len(value) != 3:
         raise _fail(path, "ndarray [dtype, shape, data]", value)
     dtype_text, shape, data = value
@@ -212,21 +287,23 @@ def _ndarray_convert(value: Any, path: str) -> np.ndarray[Any, Any]:
         raise _fail(path, "ndarray [dtype, shape, data]", value)
     if _DTYPE_TEXT.fullmatch(dtype_text) is None:
         raise DecodeError(
-            f"{path}: dtype {dtype_text!r} is not a numeric dtype code like '<f8'", "wrong_type"
+            f"{path}: dtype {_shown(dtype_text)} is not a numeric dtype code like '<f8'",
+            "wrong_type",
         )
     try:
         dtype = np.dtype(dtype_text)
     except TypeError:
         raise DecodeError(f"{path}: unknown dtype {dtype_text!r}", "wrong_type") from None
     if len(shape) > _MAX_NDIM or not all(type(n) is int and n >= 0 for n in shape):
-        raise DecodeError(f"{path}: bad shape {shape!r}", "wrong_type")
+        raise DecodeError(f"{path}: bad shape {_shown_shape(shape)}", "wrong_type")
     count = 1
     for n in shape:
         count *= n
-    if count * dtype.itemsize != len(data):
+    needed = count * dtype.itemsize
+    if needed != len(data):
+        amount = needed if needed < 2**64 else "over 2**64"  # 32 dims: a 600-digit number
         raise DecodeError(
-            f"{path}: shape {shape!r} of {dtype_text} needs {count * dtype.itemsize} bytes, "
-            f"got {len(data)}",
+            f"{path}: shape {shape!r} of {dtype_text} needs {amount} bytes, got {len(data)}",
             "wrong_type",
         )
     try:
