@@ -56,16 +56,15 @@ class Channel(Generic[T]):
         """Appends an item and wakes the reader; never drops. Returns whether it is full now."""
         items = self._items
         items.append(item)
-        waiter = self._waiter
-        if waiter is not None:
-            self._waiter = None
-            if not waiter.done():
-                waiter.set_result(None)
+        self._wake()
         return len(items) >= self.limit
 
     def nudge(self) -> None:
         """Wakes the reader once even though nothing is pending (a timer went off)."""
         self._nudged = True
+        self._wake()
+
+    def _wake(self) -> None:
         waiter = self._waiter
         if waiter is not None:
             self._waiter = None
@@ -84,10 +83,7 @@ class Channel(Generic[T]):
         items = self._items
         item = items.popleft()
         if self._room_waiters and len(items) <= self._low:
-            waiters, self._room_waiters = self._room_waiters, []
-            for waiter in waiters:
-                if not waiter.done():
-                    waiter.set_result(None)
+            self.release_room_waiters()
         return item
 
     async def wait(self) -> None:

@@ -21,7 +21,7 @@ from typing import Final
 
 from ._types import RobotId
 
-__all__ = ["DUPLICATE", "FRESH", "STALE", "WINDOW", "ReplyCache", "SenderWindows"]
+__all__ = ["DUPLICATE", "FRESH", "STALE", "WINDOW", "ReplyCache", "SenderWindows", "slide"]
 
 WINDOW: Final = 1024
 """Message ids per sender below its highest that are still told apart."""
@@ -34,6 +34,26 @@ STALE: Final = 2
 """Older than the window: cannot tell, so refused."""
 
 _MASK: Final = (1 << WINDOW) - 1
+
+
+def slide(highest: int, mask: int, n: int) -> tuple[int, int, int]:
+    """One step of the anti-replay window: ``(verdict, highest, mask)`` after seeing ``n``.
+
+    ``highest`` is the largest number seen, and bit ``k`` of ``mask`` is set when
+    ``highest - k`` was seen. The verdict is FRESH, DUPLICATE or STALE; a number
+    that is not FRESH leaves the window as it was.
+    """
+    ahead = n - highest
+    if ahead > 0:
+        # A jump of a whole window or more (a restarted sender) starts afresh:
+        # shifting by it would build an enormous integer.
+        return FRESH, n, ((mask << ahead) | 1) & _MASK if ahead < WINDOW else 1
+    if ahead <= -WINDOW:
+        return STALE, highest, mask
+    bit = 1 << -ahead
+    if mask & bit:
+        return DUPLICATE, highest, mask
+    return FRESH, highest, mask | bit
 
 
 class _Window:
@@ -70,20 +90,8 @@ class SenderWindows:
             windows[sender] = _Window(msg_id, now)
             return FRESH
         window.heard = now
-        ahead = msg_id - window.highest
-        if ahead > 0:
-            # A jump of a whole window or more (a restarted sender) starts afresh:
-            # shifting by it would build an enormous integer.
-            window.mask = ((window.mask << ahead) | 1) & _MASK if ahead < WINDOW else 1
-            window.highest = msg_id
-            return FRESH
-        if ahead <= -WINDOW:
-            return STALE
-        bit = 1 << -ahead
-        if window.mask & bit:
-            return DUPLICATE
-        window.mask |= bit
-        return FRESH
+        verdict, window.highest, window.mask = slide(window.highest, window.mask, msg_id)
+        return verdict
 
     def forget(self, sender: RobotId, msg_id: int) -> None:
         """Unmarks ``msg_id`` from ``sender`` (it was not delivered after all)."""

@@ -406,9 +406,6 @@ class Robot:
 
     # -- external messages (called by layers) --------------------------------------------
 
-    def _send_external(self, robot_id: RobotId, msg: Message) -> None:
-        self._endpoint.send(robot_id, self._codec.encode(msg))  # type: ignore[union-attr]
-
     def _send_reply(self, asker: RobotId, request_id: int, response: Message) -> None:
         """Sends an external reply and keeps it, for a repetition of the request."""
         data = self._codec.encode(response)  # type: ignore[union-attr]

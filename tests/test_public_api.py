@@ -64,6 +64,7 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "STALE",
         "run_layer",
         "run_loop",
+        "slide",
         "Receiver",
     }
     exported = set(cas_async.__all__)

@@ -55,6 +55,7 @@ from typing import Final, final
 
 from .._types import Address, RobotId
 from ..codec import MIN_DATAGRAM
+from ..dedup import DUPLICATE, STALE, WINDOW, slide
 from ..errors import ConfigurationError, RobotStateError, UnknownRobotError
 from ..swarm_key import SwarmKey
 from .base import DatagramSink, Endpoint, Transport
@@ -63,14 +64,13 @@ __all__ = ["AuthenticatedTransport"]
 
 _TAG_SIZE: Final = 16
 _TRAILER_SIZE: Final = 8 + 8 + _TAG_SIZE
-_WINDOW: Final = 1024
+_WINDOW: Final = WINDOW  # the same sliding window as the robot's duplicate check
 _MAX_SENDERS: Final = 65_536
 _REFUSALS: Final = ("auth.too_short", "auth.forged", "auth.replay", "auth.stale")
 
 _ID: Final = struct.Struct(">q")
 _TRAILER: Final = struct.Struct(">qQ")  # sender, counter
 _MAX_COUNTER: Final = 2**64 - 1
-_FULL_MASK: Final = (1 << _WINDOW) - 1
 _MAX_CACHED_PEERS: Final = 4096
 
 
@@ -285,24 +285,16 @@ class _Verifier:
             windows[signer] = (counter, 1)
             return None
         top, mask = window
-        if counter > top:
-            shift = counter - top
-            # A jump past the whole window forgets it: never shift by a huge amount.
-            mask = 1 if shift >= _WINDOW else ((mask << shift) | 1) & _FULL_MASK
-            top = counter
-        else:
-            behind = top - counter
-            if behind >= _WINDOW:
-                return (
-                    "auth.stale",
-                    f"robot {signer}: counter {counter} is {behind} behind the newest "
-                    f"({top}), beyond the replay window of {_WINDOW}",
-                )
-            bit = 1 << behind
-            if mask & bit:
-                return ("auth.replay", f"robot {signer}: counter {counter} was already accepted")
-            mask |= bit
-        windows[signer] = (top, mask)
+        verdict, highest, mask = slide(top, mask, counter)
+        if verdict == STALE:
+            return (
+                "auth.stale",
+                f"robot {signer}: counter {counter} is {top - counter} behind the newest "
+                f"({top}), beyond the replay window of {_WINDOW}",
+            )
+        if verdict == DUPLICATE:
+            return ("auth.replay", f"robot {signer}: counter {counter} was already accepted")
+        windows[signer] = (highest, mask)
         windows.move_to_end(signer)
         return None
 
