@@ -4,13 +4,16 @@ A datagram is one msgpack array::
 
     [fingerprint, type_id, msg_id, msg_type, robot_id, src_layer, dst_layer, corr_id, *fields]
 
-Encoding reads the header and fields with one ``operator.attrgetter`` call and packs
-the tuple with a reused ``msgpack.Packer``. Decoding unpacks (arrays as tuples),
-checks the header and then runs a decoder generated once per message class, which
-checks simple fields with inlined ``type(v) is int`` tests and only calls the
-slower converters of :mod:`cas_async.schema` when a field needs it. Every problem
-with untrusted bytes raises :class:`~cas_async.errors.DecodeError`; nothing is
-ever unpickled.
+Most messages take a fast path built on msgspec (see :mod:`cas_async.codegen`):
+encoding packs the header and fields, once a generated check has vouched for
+their types, and decoding reads the fingerprint and type id, then parses the
+whole datagram against the class's exact wire types in C. Anything that path
+declines takes the precise one: a reused ``msgpack.Packer``, or an unpack (arrays
+as tuples) followed by a decoder generated once per message class, which checks
+simple fields with inlined ``type(v) is int`` tests and calls the converters of
+:mod:`cas_async.schema` when a field needs it. Both paths give the same message
+or the same error; only their cost differs. Every problem with untrusted bytes
+raises :class:`~cas_async.errors.DecodeError`; nothing is ever unpickled.
 
 Decoding allocates a bounded amount of memory whatever a datagram claims (see
 :attr:`Codec.max_decode_bytes`). msgpack's C unpacker reserves the slots of an
@@ -22,15 +25,16 @@ which only allocates for items it has actually read.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, Final
 
 import msgpack
+import msgspec
 import numpy as np
 from msgpack import fallback
 from msgpack import unpackb as _unpackb
 
-from .codegen import compiled, undispatchable
+from .codegen import HEADER_LEN, compiled, undispatchable
 from .errors import DecodeError, EncodeError
 from .message import Message, MessageSpec, nested_to_wire, spec_of
 from .schema import ndarray_to_wire
@@ -100,7 +104,18 @@ class Codec:
         max_size: largest datagram, in bytes, encoded or accepted.
     """
 
-    __slots__ = ("_by_class", "_by_id", "_pack", "fingerprint", "max_size")
+    __slots__ = (
+        "_by_class",
+        "_by_id",
+        "_fast",
+        "_fast_encoders",
+        "_fast_pack",
+        "_pack",
+        "_prefix_length",
+        "_prefix_lengths",
+        "fingerprint",
+        "max_size",
+    )
 
     def __init__(
         self,
@@ -115,7 +130,22 @@ class Codec:
         generated = [compiled(spec) for spec in specs.values()]
         self._by_id = {c.spec.type_id: c.decode for c in generated}
         self._by_class = {c.spec.cls: c for c in generated}
+        # A datagram of a fast class starts with bytes known in advance: the array
+        # header (its arity is fixed), our fingerprint, its type id. Those bytes pick
+        # the class; a datagram whose start is anything else takes the precise path.
+        self._fast: dict[bytes, tuple[Callable[[bytes], Any], Callable[[Any], Message]]] = {
+            _prefix(c.spec, fingerprint): (c.fast_decode, c.build)
+            for c in generated
+            if c.fast_decode is not None and c.build is not None
+        }
+        lengths = sorted({len(prefix) for prefix in self._fast}, reverse=True)
+        self._prefix_length = lengths.pop() if lengths else 0
+        self._prefix_lengths = tuple(lengths)  # others, for type ids of other sizes
+        self._fast_encoders = {
+            c.spec.cls: c.fast_encode for c in generated if c.fast_encode is not None
+        }
         self._pack = msgpack.Packer(default=_encode_default, use_bin_type=True).pack
+        self._fast_pack = msgspec.msgpack.Encoder().encode
 
     @property
     def max_decode_bytes(self) -> int:
@@ -130,6 +160,15 @@ class Codec:
             EncodeError: a field holds a value msgpack cannot carry, the message type
                 is not accepted by this robot, or the datagram exceeds ``max_size``.
         """
+        fast = self._fast_encoders.get(type(msg))
+        if fast is not None:
+            data = fast(msg, self.fingerprint, self._fast_pack)
+            if data is not None and len(data) <= self.max_size:
+                return data
+        return self._encode_precisely(msg)
+
+    def _encode_precisely(self, msg: Message) -> bytes:
+        """Encodes with msgpack: the datagram, or the precise error."""
         entry = self._by_class.get(type(msg))
         if entry is None:
             spec = spec_of(type(msg))  # raises when @message was forgotten
@@ -156,6 +195,23 @@ class Codec:
         """
         if len(data) > self.max_size:
             raise DecodeError(f"{len(data)} bytes, above the limit of {self.max_size}", "oversize")
+        if type(data) is not bytes:
+            data = bytes(data)  # a bytearray or memoryview: its slices are not hashable
+        fast = self._fast.get(data[: self._prefix_length])
+        if fast is None and self._prefix_lengths:
+            fast = next(
+                filter(None, (self._fast.get(data[:n]) for n in self._prefix_lengths)), None
+            )
+        if fast is not None:
+            try:
+                row = fast[0](data)
+            except Exception:  # refused, or nested too deep: the precise path explains
+                return self._decode_precisely(data)
+            return fast[1](row)
+        return self._decode_precisely(data)
+
+    def _decode_precisely(self, data: bytes) -> Message:
+        """Decodes with msgpack and the generated checks: the precise error, or the message."""
         try:
             # Only the array limit is given: strings, bytes, ext types and maps are
             # limited to len(data) by default (and msgpack allocates them only once
@@ -200,6 +256,14 @@ class Codec:
             )
         except Exception as again:
             raise DecodeError(f"not a msgpack datagram: {_brief_error(again)}") from None
+
+
+def _prefix(spec: MessageSpec, fingerprint: int) -> bytes:
+    """How every datagram of ``spec`` begins: array header, fingerprint, type id."""
+    items = HEADER_LEN + len(spec.field_names)
+    header = bytes([0x90 | items]) if items < 16 else b"\xdc" + items.to_bytes(2, "big")
+    encoded: bytes = msgpack.packb(fingerprint) + msgpack.packb(spec.type_id)
+    return header + encoded
 
 
 def _brief_error(exc: BaseException) -> str:

@@ -62,6 +62,9 @@ class FieldType:
     """``list`` or ``tuple`` for ``list[T]`` / ``tuple[T, ...]`` whose elements are used
     as they are; ``elements`` is then their type, and decoders inline the check."""
     elements: type | None = None
+    wire: Any = None
+    """The type msgspec checks wire values against, exactly as ``convert`` would accept
+    them, or None when only ``convert`` can (see :mod:`cas_async.codegen`)."""
 
 
 def _shown(value: Any) -> str:
@@ -98,7 +101,7 @@ def _exact(kind: type, name: str) -> FieldType:
             return value
         raise _fail(path, name, value)
 
-    return FieldType(name, convert, f"type({{v}}) is {name}", kind)
+    return FieldType(name, convert, f"type({{v}}) is {name}", kind, wire=kind)
 
 
 def _float_convert(value: Any, path: str) -> float:
@@ -120,9 +123,10 @@ _SIMPLE: Final[dict[Any, FieldType]] = {
     bool: _exact(bool, "bool"),
     str: _exact(str, "str"),
     bytes: _exact(bytes, "bytes"),
-    float: FieldType("float", _float_convert, "type({v}) is float"),
-    type(None): FieldType("None", _none_convert, "{v} is None"),
-    None: FieldType("None", _none_convert, "{v} is None"),
+    # msgspec, like _float_convert, accepts an int for a float and returns a float.
+    float: FieldType("float", _float_convert, "type({v}) is float", wire=float),
+    type(None): FieldType("None", _none_convert, "{v} is None", wire=type(None)),
+    None: FieldType("None", _none_convert, "{v} is None", wire=type(None)),
 }
 
 
@@ -255,7 +259,11 @@ def _union(options: tuple[FieldType, ...], name: str) -> FieldType:
         fast = (
             "(" + " or ".join(o.fast_check.format(v="{v}") for o in options if o.fast_check) + ")"
         )
-    return FieldType(name, convert, fast)
+    wire: Any = None
+    plain = [o for o in options if o.text != "None"]
+    if len(options) == 2 and len(plain) == 1 and plain[0].wire is not None:
+        wire = plain[0].wire | None  # only ``T | None``: msgspec's other unions differ
+    return FieldType(name, convert, fast, wire=wire)
 
 
 def _int_enum(kind: type[enum.IntEnum]) -> FieldType:
@@ -267,7 +275,7 @@ def _int_enum(kind: type[enum.IntEnum]) -> FieldType:
             return members[value]
         raise _fail(path, f"{name} (one of {sorted(members)})", value)
 
-    return FieldType(f"{name}{sorted(members)}", convert)
+    return FieldType(f"{name}{sorted(members)}", convert, wire=kind)
 
 
 def _shown_shape(shape: tuple[Any, ...]) -> str:
@@ -365,12 +373,16 @@ def field_type(annotation: Any, where: str, message_base: type) -> FieldType:
         item = field_type(args[0], where, message_base)
         name = f"list[{item.text}]"
         container: type | None = list if item.exact is not None else None
-        return FieldType(name, _sequence(item, list, name), None, None, container, item.exact)
+        wire: Any = None if item.wire is None else list[item.wire]  # type: ignore[name-defined]
+        convert = _sequence(item, list, name)
+        return FieldType(name, convert, None, None, container, item.exact, wire)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         item = field_type(args[0], where, message_base)
         name = f"tuple[{item.text}, ...]"
         container_t: type | None = tuple if item.exact is not None else None
-        return FieldType(name, _sequence(item, tuple, name), None, None, container_t, item.exact)
+        wire = None if item.wire is None else tuple[item.wire, ...]  # type: ignore[name-defined]
+        convert = _sequence(item, tuple, name)
+        return FieldType(name, convert, None, None, container_t, item.exact, wire)
     if origin is tuple and args:
         items = tuple(field_type(a, where, message_base) for a in args)
         name = f"tuple[{', '.join(i.text for i in items)}]"
