@@ -8,7 +8,7 @@ in ``inner_process`` after each batch of acks. Baseline: two raw
 ``asyncio.DatagramProtocol`` endpoints with ``msgpack.packb``/``unpackb`` of the
 same header and fields, the same credit window and acks, and the same socket
 buffers, all done in the protocol callbacks. Clock: first send to last arrival.
-Target: framework / baseline >= 0.6.
+Target: framework / baseline >= 0.8.
 
 (b) ``external_rtt``: median request/reply round trip. Framework: ``await
 self.request(2, sample)``, answered by robot 2 with ``self.reply`` from
@@ -16,7 +16,7 @@ self.request(2, sample)``, answered by robot 2 with ``self.reply`` from
 protocol resolves; the answering protocol puts each decoded request on an
 ``asyncio.Queue`` read by a task that sends the reply (datagram -> queue -> task,
 as in LIMITS.md, because the framework answers from a task too).
-Target: framework / baseline <= 1.5.
+Target: framework / baseline <= 1.25.
 """
 
 from __future__ import annotations
@@ -275,7 +275,7 @@ BENCHES = [
         baseline=baseline_throughput,
         size=100_000,
         quick_size=10_000,
-        target=0.6,
+        target=0.8,
     ),
     Bench(
         name="external_rtt",
@@ -284,7 +284,7 @@ BENCHES = [
         baseline=baseline_rtt,
         size=3_000,
         quick_size=500,
-        target=1.5,
+        target=1.25,
         higher_is_better=False,
     ),
 ]

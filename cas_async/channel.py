@@ -56,7 +56,11 @@ class Channel(Generic[T]):
         """Appends an item and wakes the reader; never drops. Returns whether it is full now."""
         items = self._items
         items.append(item)
-        self._wake()
+        waiter = self._waiter  # _wake(), inlined: this is every message's hop
+        if waiter is not None:
+            self._waiter = None
+            if not waiter.done():
+                waiter.set_result(None)
         return len(items) >= self.limit
 
     def nudge(self) -> None:

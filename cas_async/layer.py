@@ -32,7 +32,8 @@ from ._types import Level, RobotId
 from .channel import Channel
 from .clock import Clock
 from .counters import LayerCounters
-from .errors import RequestTimeout, RobotStateError, RuleViolation, UnknownRobotError
+from .errors import RobotStateError, RuleViolation, UnknownRobotError
+from .layer_requests import Requesting, owned
 from .logs import PrefixLogger
 from .message import Message, MsgType
 from .requests import PendingRequests, ReplyOutcome
@@ -47,12 +48,7 @@ _NOT_A_REPLY: Final = ReplyOutcome.NOT_A_REPLY
 _DELIVERED: Final = ReplyOutcome.DELIVERED
 
 
-def _owned(msg: Message) -> Message:
-    """The object to stamp and send: ``msg`` the first time, a copy if it was sent before."""
-    return msg if msg.msg_id == 0 else copy.copy(msg)
-
-
-class Layer:
+class Layer(Requesting):
     """Base class of every layer. Subclasses override the hooks; see the module docs.
 
     A layer instance belongs to one robot. The runtime state is set when the robot
@@ -212,7 +208,7 @@ class Layer:
         if above is None:
             robot._violation("no_layer_above", self, msg)
             return
-        msg = _owned(msg)
+        msg = owned(msg)
         self._stamp(robot, msg, self._level - 1)
         counters = self._counters
         counters.sent_internal += 1
@@ -228,7 +224,7 @@ class Layer:
         if below is None:
             robot._violation("no_layer_below", self, msg)
             return
-        msg = _owned(msg)
+        msg = owned(msg)
         self._stamp(robot, msg, self._level + 1)
         counters = self._counters
         counters.sent_internal += 1
@@ -246,7 +242,7 @@ class Layer:
         robot = self._check_live()
         if not self._level_ok(robot, level, msg):
             return
-        msg = _owned(msg)
+        msg = owned(msg)
         self._stamp(robot, msg, level)
         counters = self._counters
         counters.sent_internal += 1
@@ -369,11 +365,17 @@ class Layer:
         ``response.msg_type`` is kept (ACCEPT by default; set DENY to refuse). The
         request object itself may be sent back as the response.
         """
-        robot = self._check_live()
+        robot = self._robot
+        if robot is None or not self._live:
+            self._check_live()  # raises, naming the reason
+        assert robot is not None
         asker, asked_id = request.robot_id, request.msg_id  # before any stamping
         if request.src_layer == request.dst_layer and asker != robot.robot_id:
-            response = _owned(response)
-            self._stamp(robot, response, self._level)
+            if response.msg_id:
+                response = copy.copy(response)  # sent before (or the request itself)
+            response.msg_id = next(robot._ids)  # stamped inline: the hot path of answers
+            response.robot_id = robot.robot_id
+            response.src_layer = response.dst_layer = self._level
             response.corr_id = asked_id
             robot._send_reply(asker, asked_id, response)
             counters = self._counters
@@ -385,7 +387,7 @@ class Layer:
 
     def _reply_internal(self, robot: Robot, request: Message, response: Message) -> None:
         asker_level, asked_id = request.src_layer, request.msg_id  # before any stamping
-        response = _owned(response)
+        response = owned(response)
         self._stamp(robot, response, asker_level)
         response.corr_id = asked_id
         counters = self._counters
@@ -393,123 +395,6 @@ class Layer:
         by_type = counters.internal_by_type
         by_type[response.__class__] = by_type.get(response.__class__, 0) + 1
         self._carry(response)
-
-    # -- requests --------------------------------------------------------------------
-
-    async def request(
-        self,
-        robot_id: RobotId,
-        msg: Message,
-        *,
-        timeout: float | None = None,
-        retries: int = 0,
-    ) -> Message:
-        """Sends a NEGOTIATION to robot ``robot_id`` and returns its reply.
-
-        The other robot answers from ``handle_msg`` with ``self.reply(msg, response)``.
-        With ``retries``, a request left unanswered for ``timeout`` is sent again,
-        as the same message: the other robot handles it once, and answers a
-        repetition with the reply it already sent (which may have been lost).
-
-        Args:
-            robot_id: the robot to ask (same level).
-            msg: the request; its ``msg_type`` becomes NEGOTIATION.
-            timeout: simulated seconds per attempt; ``default_request_timeout``
-                when ``None``; ``math.inf`` waits as long as it takes.
-            retries: how many times to send it again after a timeout; the whole
-                request gives up after ``(retries + 1) * timeout``.
-
-        Raises:
-            RequestTimeout: no reply to any attempt (the partner went silent);
-                ``attempts`` and ``peer`` say how often and whom it asked.
-            RuleViolation: ``robot_id`` is this robot (the drop is counted too).
-            RobotStateError: the robot stopped while waiting.
-            ValueError: ``retries`` is negative.
-        """
-        robot = self._check_live()
-        if robot_id == robot.robot_id:
-            robot._violation("to_own_robot", self, msg)
-            raise RuleViolation(f"{self._log.prefix}request() to its own robot {robot_id}")
-        if retries < 0:
-            raise ValueError(f"retries must be >= 0, got {retries}")
-        msg = _owned(msg)
-        msg.msg_type = _NEGOTIATION
-        self._stamp(robot, msg, self._level)
-        data = robot._codec.encode(msg)  # type: ignore[union-attr]
-        counters = self._counters
-        by_type = counters.external_by_type
-        attempt = 0
-        while True:
-            reply = self._expect(robot, msg, robot_id, True, timeout)
-            try:
-                robot._endpoint.send(robot_id, data)
-                counters.sent_external += 1
-                by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-                return await reply
-            except RequestTimeout as exc:
-                attempt += 1
-                if attempt > retries:
-                    if retries:
-                        exc.args = (f"{exc} ({attempt} attempts)",)
-                    exc.peer, exc.attempts = robot_id, attempt
-                    raise
-            finally:
-                self._requests.forget(msg.msg_id)
-
-    async def request_down(self, msg: Message, *, timeout: float | None = None) -> Message:
-        """Sends a NEGOTIATION to the layer below and returns its automatic reply."""
-        return await self.request_layer(self._level + 1, msg, timeout=timeout)
-
-    async def request_up(self, msg: Message, *, timeout: float | None = None) -> Message:
-        """Sends a NEGOTIATION to the layer above and returns its automatic reply."""
-        return await self.request_layer(self._level - 1, msg, timeout=timeout)
-
-    async def request_layer(
-        self, level: Level, msg: Message, *, timeout: float | None = None
-    ) -> Message:
-        """Sends a NEGOTIATION to layer ``level`` of this robot; returns its reply.
-
-        The reply comes from that layer's ``get_intra_msg_reply``.
-
-        Raises:
-            RequestTimeout: no reply in time.
-            RuleViolation: ``level`` is this layer's or outside the stack (counted too).
-            RobotStateError: the robot stopped while waiting.
-        """
-        robot = self._check_live()
-        if not self._level_ok(robot, level, msg):
-            raise RuleViolation(f"{self._log.prefix}no layer {level} to ask")
-        msg = _owned(msg)
-        msg.msg_type = _NEGOTIATION
-        self._stamp(robot, msg, level)
-        reply = self._expect(robot, msg, robot.robot_id, False, timeout)
-        counters = self._counters
-        counters.sent_internal += 1
-        by_type = counters.internal_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-        self._carry(msg)
-        # While it waits for the answer this layer handles nothing: a layer that waits
-        # for room in this layer's inbox must not wait for it (see layer_loop).
-        asked = robot.layers[level]
-        self._waiting_on = asked
-        self._inbox.release_room_waiters()
-        try:
-            return await reply
-        finally:
-            self._waiting_on = None
-            self._requests.forget(msg.msg_id)
-
-    def _expect(
-        self,
-        robot: Robot,
-        msg: Message,
-        peer: RobotId,
-        external: bool,
-        timeout: float | None,
-    ) -> asyncio.Future[Message]:
-        seconds = self.default_request_timeout if timeout is None else timeout
-        deadline = robot.clock.loop_deadline(seconds)
-        return self._requests.expect(msg, peer, external, seconds, deadline)
 
     def silent_for(self, robot_id: RobotId) -> float:
         """Simulated seconds since a message from robot ``robot_id`` was last delivered.

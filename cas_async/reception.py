@@ -113,7 +113,8 @@ class Reception:
             robot._drop("from_own_id", f"external {msg!r} claims to come from this robot")
         elif sender is not None and claimed != sender:
             robot._drop("spoofed_sender", f"external {msg!r} was sent by robot {sender}")
-        elif not self._endpoint.knows(claimed):  # type: ignore[union-attr]
+        elif sender is None and not self._endpoint.knows(claimed):  # type: ignore[union-attr]
+            # A sender the transport named is one it knows; only an anonymous one is looked up.
             robot._drop("unknown_sender", f"external {msg!r} from a robot this one cannot reach")
         else:
             seen = self.senders.check(claimed, msg.msg_id, self._now())  # type: ignore[misc]

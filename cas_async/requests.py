@@ -44,21 +44,28 @@ class ReplyOutcome(enum.Enum):
 
 
 class _Waiter:
-    __slots__ = ("external", "future", "peer", "seconds", "what")
+    __slots__ = ("external", "future", "peer", "request", "seconds")
 
     def __init__(
         self,
         future: asyncio.Future[Message],
+        request: Message,
         peer: RobotId,
         external: bool,
         seconds: float,
-        what: str,
     ) -> None:
         self.future = future
-        self.peer = peer  # the robot that must answer (this robot, for internal requests)
+        self.request = request
+        self.peer = peer  # the robot that must answer (this robot, for internal ones)
         self.external = external
         self.seconds = seconds
-        self.what = what  # "robot 3 to Query #12", for the messages of errors and drops
+
+    @property
+    def what(self) -> str:
+        """``robot 3 to Query #12``, for errors and drops: formatted only for those."""
+        request = self.request
+        whom = f"robot {self.peer}" if self.external else f"layer {request.dst_layer}"
+        return f"{whom} to {type(request).__name__} #{request.msg_id}"
 
 
 def _remember(ids: dict[int, None], msg_id: int) -> None:
@@ -107,9 +114,7 @@ class PendingRequests:
             loop = asyncio.get_running_loop()
             deadlines = self._deadlines = Deadlines(loop, self._waiting, self._expire)
         future: asyncio.Future[Message] = deadlines.loop.create_future()
-        whom = f"robot {peer}" if external else f"layer {msg.dst_layer}"
-        what = f"{whom} to {type(msg).__name__} #{msg.msg_id}"
-        self._waiting[msg.msg_id] = _Waiter(future, peer, external, seconds, what)
+        self._waiting[msg.msg_id] = _Waiter(future, msg, peer, external, seconds)
         if deadline != math.inf:  # an infinite timeout arms no timer
             deadlines.add(msg.msg_id, deadline)
         return future
