@@ -1,8 +1,24 @@
-"""Runs every benchmark: ``python -m benchmarks [--quick] [--runs N] [--loop ...]``."""
+"""Runs every benchmark: ``python -m benchmarks [--quick] [--runs N] [--loop ...] [--only NAME]``.
+
+The mango-agents comparisons need the ``bench`` extra (``pip install -e ".[bench]"``);
+without it they are skipped, and said so.
+"""
 
 import sys
 
-from . import bench_codec, bench_external, bench_internal
+from . import bench_codec, bench_external, bench_internal, bench_mango, bench_processes
 from ._common import main
 
-sys.exit(main([*bench_internal.BENCHES, *bench_external.BENCHES, *bench_codec.BENCHES]))
+if not bench_mango.available():
+    print(bench_mango.skip_message(), file=sys.stderr)
+sys.exit(
+    main(
+        [
+            *bench_internal.BENCHES,
+            *bench_external.BENCHES,
+            *bench_processes.BENCHES,
+            *bench_codec.BENCHES,
+            *bench_mango.BENCHES,
+        ]
+    )
+)

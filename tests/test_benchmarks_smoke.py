@@ -1,0 +1,114 @@
+"""The two-process and mango benchmarks run, report well-formed rows, and leave no child.
+
+Smoke tests only: tiny sizes, the stdlib loop, one run per side. The figures are not
+judged (speed targets live in the benchmarks); a run whose receiver did not get
+every message raises, so a row at all means every message arrived.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import pytest
+
+from benchmarks import bench_mango
+from benchmarks._common import Bench, run_bench
+from benchmarks.bench_processes import BENCHES as PROCESS_BENCHES
+from benchmarks.bench_processes import peer_process
+
+SIZE = 500
+FIELDS = {
+    "benchmark": str,
+    "loop": str,
+    "unit": str,
+    "framework": float,
+    "baseline": float,
+    "ratio": float,
+    "passed": bool,
+    "framework_runs": list,
+    "baseline_runs": list,
+}
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+
+
+def children() -> set[int]:
+    """Processes (zombies included) whose parent is this one."""
+    me = str(Path("/proc/self").resolve().name)
+    found = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            after_name = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the process ended while we looked
+            continue
+        if after_name[1] == me:  # fields after the name: state, ppid, ...
+            found.add(int(stat.parent.name))
+    return found
+
+
+def smoke(bench: Bench) -> dict[str, object]:
+    before = children()
+    row = run_bench(dataclasses.replace(bench, quick_size=SIZE), "stdlib", runs=1, quick=True)
+    assert children() <= before, "a benchmark left a child process behind"
+    return row
+
+
+def check_row(row: dict[str, object], name: str) -> None:
+    for field, kind in FIELDS.items():
+        assert isinstance(row[field], kind), f"{field}: {row[field]!r} is not a {kind}"
+    assert (row["benchmark"], row["loop"], row["unit"], row["size"]) == (
+        name,
+        "stdlib",
+        "msg/s",
+        SIZE,
+    )
+    assert row["framework"] > 0  # type: ignore[operator]
+    assert row["baseline"] > 0  # type: ignore[operator]
+
+
+@pytest.mark.parametrize("bench", PROCESS_BENCHES, ids=lambda b: b.name)
+def test_the_two_process_benchmark_runs(bench: Bench) -> None:
+    check_row(smoke(bench), bench.name)
+
+
+def test_the_mango_benchmarks_are_listed_when_mango_imports() -> None:
+    names = [b.name for b in bench_mango.BENCHES]
+    if bench_mango.available():
+        assert names == ["mango_one_process", "mango_processes"]
+        assert bench_mango.skip_message() == ""
+    else:
+        assert names == []
+        assert "pip install" in bench_mango.skip_message()
+
+
+@pytest.mark.parametrize("name", ["mango_one_process", "mango_processes"])
+def test_the_mango_benchmarks_run(name: str) -> None:
+    pytest.importorskip("mango")
+    (bench,) = [b for b in bench_mango.BENCHES if b.name == name]
+    check_row(smoke(bench), name)
+
+
+async def test_a_peer_that_does_not_start_is_reaped() -> None:
+    before = children()
+    with pytest.raises(RuntimeError, match="did not start"):
+        async with peer_process("benchmarks._process_peer", ["no-such-mode"]):
+            pytest.fail("the block must not run")
+    assert children() <= before
+
+
+async def test_an_error_in_the_block_kills_the_peer() -> None:
+    before = children()
+    with pytest.raises(ValueError, match="boom"):
+        async with peer_process("benchmarks._process_peer", ["raw", "--total", "10"]) as peer:
+            assert peer.port > 0
+            raise ValueError("boom")
+    assert peer.process.returncode == -9  # killed, not asked to stop
+    assert children() <= before
+
+
+async def test_a_peer_reports_what_it_received() -> None:
+    async with peer_process("benchmarks._process_peer", ["raw", "--total", "10"]) as peer:
+        assert await peer.finish() == 0  # nothing was sent
+    assert peer.process.returncode == 0
