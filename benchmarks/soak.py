@@ -36,6 +36,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from cas_async import (
+    ConfigurationError,
     Layer,
     Message,
     MsgType,
@@ -48,6 +49,7 @@ from cas_async import (
     message,
     uvloop_available,
 )
+from cas_async.transport.fd_limit import ensure_descriptors
 
 from ._common import LOOPBACK, pin_malloc
 
@@ -176,24 +178,16 @@ def open_fds() -> int:
 
 
 def raise_fd_limit(robots: int) -> int:
-    """Raises the soft RLIMIT_NOFILE to fit one socket per robot; returns the new limit.
+    """Makes room for one socket per robot (see ``ensure_descriptors``); returns the limit.
 
     Raises:
         SystemExit: (status 2) the hard limit is too low.
     """
-    needed = robots + FD_MARGIN
-    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
-    if hard != resource.RLIM_INFINITY and hard < needed:
-        print(
-            f"soak: {robots} robots need about {needed} file descriptors, but the hard limit "
-            f"(RLIMIT_NOFILE) is {hard}; raise it (ulimit -Hn, or limits.conf) or use fewer robots",
-            file=sys.stderr,
-        )
-        raise SystemExit(2)
-    if soft != resource.RLIM_INFINITY and soft < needed:
-        soft = needed if hard == resource.RLIM_INFINITY else min(hard, needed + FD_MARGIN)
-        resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
-    return soft
+    try:
+        return ensure_descriptors(robots + FD_MARGIN)
+    except ConfigurationError as error:
+        print(f"soak: {robots} robots: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 @dataclass

@@ -10,6 +10,13 @@ robot's clock; application layers read ``clock.now()``. Two implementations:
   simulation runs as fast as the CPU allows and a seeded run is reproducible.
 
 This is the only module that reads time: the rest of the package asks a clock.
+
+Timers never go off before their simulated instant: uvloop rounds every delay to
+the nearest millisecond (and runs one under half a millisecond at once), so real
+time deadlines are padded by that rounding. A layer woken by ``wake_after`` or a
+sleep can then trust ``now()`` to have reached the instant it asked for, however
+large the time factor (at factor 100, half a millisecond early is 50 ms simulated).
+Virtual time needs no pad: the loop jumps to each timer's instant exactly.
 """
 
 from __future__ import annotations
@@ -17,12 +24,32 @@ from __future__ import annotations
 import asyncio
 import time
 from abc import ABC, abstractmethod
-from typing import final
+from typing import Final, final
 
 from .errors import ConfigurationError
 from .virtual_loop import VirtualTimeLoop
 
 __all__ = ["Clock", "ScaledClock", "VirtualClock"]
+
+_MILLISECOND_ROUNDING: Final = 0.0005 + 1e-6
+"""Loop seconds a millisecond-rounding loop (uvloop) may run a timer early, and a hair."""
+
+
+def _loop_timer_pad(loop: asyncio.AbstractEventLoop) -> float:
+    """Loop seconds to add to a deadline so that a timer armed for it never goes off early.
+
+    The stdlib loop runs timers due within its clock resolution (a nanosecond);
+    uvloop rounds delays to whole milliseconds.
+    """
+    if type(loop).__module__.partition(".")[0] == "uvloop":
+        return _MILLISECOND_ROUNDING
+    resolution = getattr(loop, "_clock_resolution", 0.0)
+    return float(resolution) if isinstance(resolution, int | float) else 0.0
+
+
+def _wake(future: asyncio.Future[None]) -> None:
+    if not future.done():
+        future.set_result(None)
 
 
 class Clock(ABC):
@@ -38,6 +65,7 @@ class Clock(ABC):
     def __init__(self) -> None:
         self._origin: float | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._pad = 0.0  # loop seconds added to every deadline: see _loop_timer_pad
 
     @property
     @abstractmethod
@@ -67,7 +95,12 @@ class Clock(ABC):
             loop = asyncio.get_running_loop()
             self.check_loop(loop)
             self._loop = loop  # kept: get_running_loop() costs a getpid() call on 3.11
+            self._pad = self._timer_pad(loop)
             self._origin = loop.time()
+
+    def _timer_pad(self, loop: asyncio.AbstractEventLoop) -> float:
+        """Loop seconds added to every deadline so that no timer goes off before it."""
+        return _loop_timer_pad(loop)
 
     def now(self) -> float:
         """Simulated seconds since the clock started."""
@@ -78,24 +111,63 @@ class Clock(ABC):
         return (loop.time() - self._origin) / self._loop_time_per_sim_second()
 
     async def sleep(self, seconds: float) -> None:
-        """Waits ``seconds`` of simulated time (a non-positive value just yields)."""
-        await asyncio.sleep(max(0.0, seconds) * self._loop_time_per_sim_second())
+        """Waits ``seconds`` of simulated time (a non-positive value just yields).
+
+        In a loop of steps, prefer :meth:`sleep_until` of ``start + n * step``: a
+        relative sleep starts from whenever the previous step ended, so the time
+        the steps take (and every timer's lateness) adds up.
+        """
+        if seconds > 0:
+            _, pad = self._loop_and_pad()
+            await asyncio.sleep(seconds * self._loop_time_per_sim_second() + pad)
+        else:
+            await asyncio.sleep(0)
 
     async def sleep_until(self, deadline: float) -> None:
-        """Waits until simulated time ``deadline``.
+        """Waits until simulated time ``deadline`` (a past one just yields).
 
-        Sleeping to absolute deadlines keeps timer rounding from accumulating over
-        a sequence of actions, unlike a chain of relative sleeps.
-        """
-        await self.sleep(deadline - self.now())
-
-    def loop_deadline(self, seconds: float) -> float:
-        """The event-loop time at which ``seconds`` of simulated time from now will have passed.
-
-        For code that schedules many deadlines on the loop itself (request timeouts).
+        The timer is armed for the loop time of ``deadline`` itself, not for a
+        delay from now: a sequence of sleeps to ``start + n * step`` lands exactly
+        on each instant (in virtual time) or as close as the loop's timers allow
+        (in real time), however long each step's work took and however late each
+        wake-up was. Never returns before ``now() >= deadline``.
         """
         loop = self._loop or asyncio.get_running_loop()
-        return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second()
+        when = self.loop_time_at(deadline)
+        if when <= loop.time():
+            await asyncio.sleep(0)
+            return
+        future = loop.create_future()
+        handle = loop.call_at(when + self._pad, _wake, future)
+        try:
+            await future
+        finally:
+            handle.cancel()  # cancelled while waiting: the timer must not outlive us
+
+    def loop_time_at(self, t: float) -> float:
+        """The event-loop time of simulated instant ``t`` (the inverse of :meth:`at_loop_time`)."""
+        if self._origin is None:
+            self.start()
+        assert self._origin is not None
+        return self._origin + t * self._loop_time_per_sim_second()
+
+    def loop_deadline(self, seconds: float) -> float:
+        """The event-loop time to arm a timer ``seconds`` of simulated time from now.
+
+        For code that schedules many deadlines on the loop itself (request
+        timeouts, ``wake_after``). Padded by the loop's timer rounding, so that a
+        timer armed for it finds ``now()`` at or past the instant.
+        """
+        loop, pad = self._loop_and_pad()
+        return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second() + pad
+
+    def _loop_and_pad(self) -> tuple[asyncio.AbstractEventLoop, float]:
+        """The loop, and its timer pad, also before the clock is started."""
+        loop = self._loop
+        if loop is None:
+            loop = asyncio.get_running_loop()
+            return loop, self._timer_pad(loop)
+        return loop, self._pad
 
     def at_loop_time(self, loop_time: float) -> float:
         """The simulated time at event-loop time ``loop_time`` (for times the loop recorded)."""
@@ -118,7 +190,7 @@ class Clock(ABC):
         """An ``async with`` block that raises ``TimeoutError`` after ``seconds`` simulated."""
         if seconds is None:
             return asyncio.timeout(None)
-        return asyncio.timeout(max(0.0, seconds) * self._loop_time_per_sim_second())
+        return asyncio.timeout_at(self.loop_deadline(seconds))
 
 
 @final
@@ -168,6 +240,10 @@ class VirtualClock(Clock):
 
     def _loop_time_per_sim_second(self) -> float:
         return 1.0
+
+    def _timer_pad(self, loop: asyncio.AbstractEventLoop) -> float:
+        """None: the virtual loop runs each timer at its instant exactly."""
+        return 0.0
 
     def message_id_base(self) -> int:
         """Virtual microseconds since the loop began, plus one: reproducible, and growing."""

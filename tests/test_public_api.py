@@ -67,6 +67,7 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "slide",
         "Receiver",
         "Requesting",
+        "ensure_descriptors",
         "owned",
     }
     exported = set(cas_async.__all__)

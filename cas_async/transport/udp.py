@@ -26,6 +26,7 @@ from typing import Any, Final, Protocol, final
 from .._types import Address, RobotId
 from ..errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .base import DatagramSink, Endpoint, Transport, drop_socket_error
+from .fd_limit import ensure_descriptors
 from .udp_socket import SocketWire
 
 __all__ = ["MAX_UDP_PAYLOAD", "InsecureBindWarning", "UdpDirectory", "UdpTransport"]
@@ -283,6 +284,7 @@ class UdpTransport(Transport):
         configured = self.directory.get(robot_id)
         bind = configured or (self.host, 0)
         loop = asyncio.get_running_loop()
+        ensure_descriptors(1)  # this robot's socket: a thousand robots outgrow a soft limit
         try:
             transport = await self._bind(loop, bind, _Protocol(sink, self.directory))
         except OSError as exc:
