@@ -10,7 +10,7 @@ from cas_async.scenario import Mission, ScenarioError, SimulationSetup
 
 from . import messages
 from .action import Action
-from .base import Params, Point
+from .base import Params, Peers, Point
 from .config import FireBrigadeConfig
 from .goal import Goal
 from .group_activity import GroupActivity
@@ -55,14 +55,19 @@ class FireBrigade:
             if not points:
                 problems.append((key, "expected at least one position, got none"))
             for index, point in enumerate(points):
-                if not _inside(point, world):
+                # Each listed position once: the first of its copies that is outside.
+                copies = stations.placed((point,))
+                outside = next((k for k, at in enumerate(copies) if not _inside(at, world)), None)
+                if outside is not None:
+                    at = copies[outside]
+                    which = f" (copy {outside + 1} of {len(copies)})" if len(copies) > 1 else ""
                     problems.append(
                         (
                             f"{key}[{index}]",
-                            f"expected a position {where}, got [{point[0]:g}, {point[1]:g}]",
+                            f"expected a position {where}, got [{at[0]:g}, {at[1]:g}]{which}",
                         )
                     )
-        everyone = [*stations.generators, *stations.sinks]
+        everyone = [*stations.placed(stations.generators), *stations.placed(stations.sinks)]
         if len(set(everyone)) < len(everyone):
             problems.append(("stations", "two stations stand at the same position"))
         fleet = config.transporters
@@ -101,10 +106,14 @@ class FireBrigade:
         config = setup.config
         assert isinstance(config, FireBrigadeConfig)
         fleet, rng = config.transporters, setup.rng
+        stations = config.stations
         placed: list[tuple[Kind, Pose]] = [
-            (Kind.GENERATOR, Pose(x, y, math.pi / 2)) for x, y in config.stations.generators
+            (Kind.GENERATOR, Pose(x, y, math.pi / 2))
+            for x, y in stations.placed(stations.generators)
         ]
-        placed += [(Kind.SINK, Pose(x, y, -math.pi / 2)) for x, y in config.stations.sinks]
+        placed += [
+            (Kind.SINK, Pose(x, y, -math.pi / 2)) for x, y in stations.placed(stations.sinks)
+        ]
         low, high = fleet.spawn_min, fleet.spawn_max
         for _ in range(fleet.count):
             x, y = rng.uniform(low, high)
@@ -113,10 +122,10 @@ class FireBrigade:
         strategy = strategy_class(config.strategy.name)
         robots = []
         groups: dict[str, list[int]] = {kind.name.title(): [] for kind in Kind}
-        for robot_id, (kind, pose) in zip(roster, placed, strict=True):
+        for at, (robot_id, (kind, pose)) in enumerate(zip(roster, placed, strict=True)):
             params = Params(
                 kind=kind,
-                peers=tuple(r for r in roster if r != robot_id),
+                peers=Peers(roster, at),
                 world=setup.world,
                 speed=fleet.speed,
                 deceleration=fleet.deceleration,
@@ -130,6 +139,7 @@ class FireBrigade:
                 timeout=config.messaging.timeout,
                 retries=config.messaging.retries,
                 patience=config.messaging.patience,
+                sink_search=config.strategy.sink_search,
             )
             setup.environment.add_robot(robot_id, pose, mobile=params.mobile)
             middleware = SimulatedMiddleware(

@@ -9,7 +9,9 @@ Each layer keeps its own copy of the state it needs, kept up to date by messages
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Literal, overload
 
 from cas_async import ConstantSpeed, Decelerating, Layer, Message
 
@@ -24,10 +26,15 @@ __all__ = [
     "TASK",
     "BrigadeLayer",
     "Params",
+    "Peers",
     "Point",
+    "SinkSearch",
 ]
 
 Point = tuple[float, float]
+
+SinkSearch = Literal["everyone", "nearby"]
+"""How a Generator finds the Sinks: it asks every robot, or the robots around it."""
 
 GOAL, STRATEGY, GROUP, TASK, ACTION = range(5)
 """Levels of the five layers, top (0) to bottom (4)."""
@@ -37,13 +44,75 @@ EARLY = 1e-6
 a layer woken by ``wake_after`` compares the clock with its deadline minus this."""
 
 
+class Peers(Sequence[int]):
+    """Every robot of a roster but one, in roster order: a view, not a copy.
+
+    A swarm of ``n`` robots gives each its peers; as tuples that would be ``n``
+    squared ids in memory (800 MB for 10,000 robots), as views of one shared
+    roster it is ``n``.
+
+    Args:
+        roster: every robot, each once (shared by all the views).
+        at: the position in ``roster`` of the robot left out.
+
+    Raises:
+        IndexError: ``at`` is not a position in ``roster``.
+    """
+
+    __slots__ = ("_at", "_robot", "_roster")
+
+    def __init__(self, roster: tuple[int, ...], at: int) -> None:
+        if not 0 <= at < len(roster):
+            raise IndexError(f"position {at} is not in a roster of {len(roster)} robots")
+        self._roster = roster
+        self._at = at
+        self._robot = roster[at]
+
+    def __len__(self) -> int:
+        return len(self._roster) - 1
+
+    @overload
+    def __getitem__(self, index: int) -> int: ...
+    @overload
+    def __getitem__(self, index: slice) -> tuple[int, ...]: ...
+    def __getitem__(self, index: int | slice) -> int | tuple[int, ...]:
+        if isinstance(index, slice):
+            return tuple(self)[index]
+        size = len(self)
+        if not -size <= index < size:
+            raise IndexError(f"peer index {index} out of range for {size} peers")
+        index %= size
+        return self._roster[index + 1 if index >= self._at else index]
+
+    def __iter__(self) -> Iterator[int]:
+        roster, at = self._roster, self._at
+        yield from roster[:at]
+        yield from roster[at + 1 :]
+
+    def __contains__(self, robot: object) -> bool:
+        return robot != self._robot and robot in self._roster
+
+    def __eq__(self, other: object) -> bool:
+        """Equal to the tuple of the same ids (what peers were before they were a view)."""
+        if isinstance(other, Peers | tuple):
+            return len(other) == len(self) and all(a == b for a, b in zip(self, other, strict=True))
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(tuple(self))
+
+    def __repr__(self) -> str:
+        return f"Peers(roster of {len(self._roster)}, without {self._robot})"
+
+
 @dataclass(frozen=True, slots=True)
 class Params:
     """One robot's constants, the same in all of its layers.
 
     Attributes:
         kind: Generator, Sink or Transporter.
-        peers: every other robot of the swarm (the roster, as a UDP directory has it).
+        peers: every other robot of the swarm (the roster, as a UDP directory has it),
+            in roster order; the app builds :class:`Peers` views.
         world: the area's width and height.
         speed, deceleration, min_speed: a transporter's motion (see ``Transporters``).
         handover_time: seconds a hand-over takes.
@@ -55,10 +124,11 @@ class Params:
         timeout: seconds to wait for another robot before asking again.
         retries: times a question is asked again before the other robot counts as silent.
         patience: seconds a robot waits at a meeting point for a silent partner.
+        sink_search: how a Generator finds the Sinks (see the Goal layer).
     """
 
     kind: Kind
-    peers: tuple[int, ...]
+    peers: Sequence[int]
     world: Point
     speed: float
     deceleration: float
@@ -72,6 +142,7 @@ class Params:
     timeout: float = 0.5
     retries: int = 6
     patience: float = 30.0
+    sink_search: SinkSearch = "everyone"
 
     @property
     def give_up_after(self) -> float:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 from cas_async.scenario import setting
 
@@ -44,6 +45,17 @@ class Stations:
 
     generators: tuple[Point, ...] = setting(((4.0, 0.0), (8.0, 0.0)), doc="positions")
     sinks: tuple[Point, ...] = setting(((4.0, 9.0), (8.0, 9.0)), doc="positions")
+    repeat: int = setting(
+        1, ge=1, doc="copies of the whole layout of stations, for large swarms (1: as listed)"
+    )
+    repeat_offset: Point = setting(
+        (10.0, 0.0), doc="each copy stands this far from the previous one, [dx, dy]"
+    )
+
+    def placed(self, points: tuple[Point, ...]) -> tuple[Point, ...]:
+        """``points`` (``generators`` or ``sinks``) in every copy: copy by copy, in listed order."""
+        dx, dy = self.repeat_offset
+        return tuple((x + k * dx, y + k * dy) for k in range(self.repeat) for x, y in points)
 
 
 @dataclass(frozen=True)
@@ -74,6 +86,10 @@ class StrategyConfig:
     )
     search_growth: float = setting(
         2.0, gt=1, doc="a generator widens its search radius by this factor per failed round"
+    )
+    sink_search: Literal["everyone", "nearby"] = setting(
+        "everyone",
+        doc="a generator asks every robot where the sinks are, or those within range first",
     )
 
 

@@ -5,6 +5,11 @@
   Sink. Sinks never move, so the answer is kept for the Generator's next buckets.
   Robots that do not answer within ``timeout`` are asked again, up to ``retries``
   times; then the Sinks known so far are enough (and without one it keeps asking).
+  With ``sink_search = "nearby"`` it asks only the robots within ``range`` of it,
+  then within a radius ``search_growth`` times larger, and so on, until a Sink has
+  answered (up to the whole world): in a swarm of thousands, asking everyone is a
+  flood of answers per Generator. The Sink chosen is the same: once one Sink within
+  a radius has answered, the nearest Sink is within that radius too.
   A Transporter that receives a bucket takes over the destination its giver chose.
 * With a destination, it hands the responsibility down: ``ChangeStatus("MoveBucket")``.
 * When the layers below report a hand-over (``"Exchanged"``): a Transporter that
@@ -14,11 +19,14 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 from cas_async import Message, MsgType
 
 from .base import ACTION, EARLY, BrigadeLayer, Params, Point
 from .estimate import distance
-from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo
+from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
 
 __all__ = ["Goal"]
 
@@ -38,11 +46,16 @@ class Goal(BrigadeLayer):
         self.answers_due = 0.0  # when the current round is over
         self.answers: dict[int, RequestInfo] = {}
         self.sinks: dict[int, Point] | None = None  # known once a round completed
+        # "nearby": the robots within radius (nearest first) and those of them that
+        # have not answered yet; "everyone" asks the peers.
+        self.asked: Sequence[int] = params.peers
+        self.waiting: set[int] = set()
+        self.radius = params.range
 
     async def inner_process(self) -> None:
         """Starts what the state calls for: a destination search or a MoveBucket."""
         if self.asking and self.clock.now() >= self.answers_due - EARLY:
-            self._round_over()
+            await self._round_over()
         if self.kind is Kind.GENERATOR and self.bucket < 0 and not self.delegated:
             await self._make_bucket()
         if self.bucket < 0 or self.delegated:
@@ -76,12 +89,47 @@ class Goal(BrigadeLayer):
             return
         self.asking = True
         self.rounds = 0
+        if self.params.sink_search == "nearby":
+            self.radius = self.params.range
+            await self._ask_nearby()
+            return
         where = await self.request_layer(ACTION, RequestInfo())
         assert isinstance(where, RequestInfo)
         self.here = (where.x, where.y)
         self._ask(self.params.peers)
 
-    def _ask(self, robots: tuple[int, ...]) -> None:
+    async def _ask_nearby(self) -> None:
+        """Asks the robots within ``radius`` that have not answered yet."""
+        found = await self.request_layer(ACTION, RequestRobotsInRange(self.radius))
+        assert isinstance(found, RequestRobotsInRange)
+        assert found.ids is not None
+        self.here = (found.x, found.y)
+        self.asked = tuple(found.ids)
+        self.rounds = 0
+        answers = self.answers
+        self.waiting = {r for r in self.asked if r not in answers}
+        if self.waiting:
+            self._ask(tuple(r for r in self.asked if r in self.waiting))
+        else:  # nobody new within this radius: look farther at once
+            await self._widen()
+
+    async def _widen(self) -> None:
+        """No Sink within ``radius`` has answered: asks within a wider one (up to the world).
+
+        Raises:
+            RuntimeError: the radius covers the world, everyone answered, and no
+                robot is a Sink.
+        """
+        world = math.hypot(*self.params.world)
+        if self.radius < world:
+            self.radius = min(self.radius * self.params.search_growth, world)
+            await self._ask_nearby()
+        elif self.waiting:  # as far as it goes: keep asking the silent ones
+            self._ask(tuple(r for r in self.asked if r in self.waiting))
+        else:
+            raise RuntimeError(f"robot {self.robot_id}: no robot of the swarm is a sink")
+
+    def _ask(self, robots: Sequence[int]) -> None:
         self.broadcast(
             RequestInfo(self.here[0], self.here[1], self.kind, msg_type=MsgType.NEGOTIATION),
             robots=robots,
@@ -90,11 +138,21 @@ class Goal(BrigadeLayer):
         self.answers_due = self.clock.now() + self.params.timeout
         self.wake_after(self.params.timeout)
 
-    def _round_over(self) -> None:
-        """Asks again who has not answered; after ``retries`` rounds, a Sink known is enough."""
-        if self.rounds > self.params.retries and self._settle():
-            return
-        self._ask(tuple(r for r in self.params.peers if r not in self.answers))
+    async def _round_over(self) -> None:
+        """Asks again who has not answered; after ``retries`` rounds, a Sink known is enough.
+
+        Looking nearby, a search that found no Sink after ``retries`` rounds looks farther.
+        """
+        if self.rounds > self.params.retries:
+            if self._settle():
+                return
+            if self.params.sink_search == "nearby":
+                await self._widen()
+                return
+        if self.params.sink_search == "nearby":
+            self._ask(tuple(r for r in self.asked if r in self.waiting))
+        else:
+            self._ask(tuple(r for r in self.params.peers if r not in self.answers))
 
     def _settle(self) -> bool:
         """Keeps the Sinks among the answers, if any; whether the search is over."""
@@ -126,7 +184,13 @@ class Goal(BrigadeLayer):
             self.late(msg, "no RequestInfo round is under way")
             return
         self.answers[msg.robot_id] = msg
-        if len(self.answers) == len(self.params.peers) and not self._settle():
+        if self.params.sink_search == "nearby":
+            waiting = self.waiting
+            if msg.robot_id in waiting:
+                waiting.discard(msg.robot_id)
+                if not waiting and not self._settle():
+                    await self._widen()
+        elif len(self.answers) == len(self.params.peers) and not self._settle():
             raise RuntimeError(f"robot {self.robot_id}: no robot of the swarm is a sink")
 
     async def store_intra_msg(self, msg: Message) -> None:

@@ -4,7 +4,8 @@ Usage::
 
     python -m apps.fire_brigade.sweep [SCENARIO ...] [--seeds N] [--set KEY=VALUE ...] [--json]
 
-Each scenario (by default the six shipped ones) runs once per seed ``1..N`` on
+Each scenario (by default the six thesis scenarios, ``thesis_*.toml``; the
+``scale_*`` ones are for ``python -m benchmarks.scale``) runs once per seed ``1..N`` on
 virtual time with the in-memory transport, whatever its ``[run]`` table says.
 Makespan figures are over the runs that completed; bucket figures pool every
 bucket delivered in those runs; wall seconds add up every run's own wall time.
@@ -30,7 +31,8 @@ from .config import FireBrigadeConfig
 __all__ = ["SCENARIOS", "SweepRow", "main", "sweep", "sweep_table"]
 
 SCENARIOS: Final = Path(__file__).resolve().parent / "scenarios"
-"""Where the shipped scenarios are; the sweep runs all of them by default."""
+"""Where the shipped scenarios are; the sweep runs the thesis's by default."""
+_THESIS: Final = "thesis_*.toml"
 
 _FORCED: Final = ("run.virtual=true", 'run.transport="memory"')
 _COLUMNS: Final = (
@@ -156,7 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
-    paths = args.scenarios or sorted(SCENARIOS.glob("*.toml"))
+    paths = args.scenarios or sorted(SCENARIOS.glob(_THESIS))
     rows: list[SweepRow] = []
     for path in paths:
         try:

@@ -80,6 +80,10 @@ class RunConfig:
         transport: ``"udp"`` (real sockets on localhost) or ``"memory"`` (in process).
         max_time: simulated seconds after which the run gives up (timed out).
         trace_interval: simulated seconds between two samples of robot positions.
+        trace_exchanges: also snapshot every robot's position right after each
+            exchange. That costs robots x exchanges in memory, which grows with the
+            square of a swarm that scales its work with its size: turn it off for
+            thousands of robots (the figures by exchange are then left empty).
         progress_interval: wall seconds between two plain progress lines.
         restarts: how many times a layer that raises is restarted (see
             :mod:`cas_async.supervision`) within ``restart_window`` simulated
@@ -93,6 +97,9 @@ class RunConfig:
     transport: Literal["udp", "memory"] = setting("udp", doc="how robots exchange messages")
     max_time: float = setting(3600.0, gt=0, doc="simulated seconds before the run gives up")
     trace_interval: float = setting(1.0, gt=0, doc="simulated seconds between position samples")
+    trace_exchanges: bool = setting(
+        True, doc="snapshot every robot's position after each exchange (robots x exchanges)"
+    )
     progress_interval: float = setting(1.0, gt=0, doc="wall seconds between progress lines")
     restarts: int = setting(
         0, ge=0, doc="times a failed layer is restarted within restart_window; 0: the run fails"

@@ -31,6 +31,7 @@ from ..transport.faulty import FaultyTransport
 from ..transport.memory import MemoryTransport
 from ..transport.udp import UdpTransport
 from .app import Mission, SimulationSetup
+from .gc_policy import young_generation_for
 from .loader import Scenario
 from .progress import Progress
 from .results import RunResult, RunStatus
@@ -67,7 +68,9 @@ async def run_scenario(
     """Runs ``scenario`` to its end and returns what it measured and the position trace.
 
     Run it on the loop the scenario needs: ``cas_async.run(run_scenario(s),
-    virtual=s.run.virtual)``.
+    virtual=s.run.virtual)``. While the swarm runs, the garbage collector's
+    youngest generation is sized to the swarm (see :mod:`.gc_policy`): the
+    process-wide threshold is raised for thousands of robots, then restored.
 
     Args:
         scenario: a loaded, validated scenario.
@@ -119,7 +122,8 @@ async def run_scenario(
 
     def on_item(event: ItemEvent) -> None:
         if event.kind is ItemEventKind.TRANSFERRED:
-            trace.exchange(event.t, ledger.transfers, environment.positions_at(event.t).xy)
+            if run.trace_exchanges:
+                trace.exchange(event.t, ledger.transfers, environment.positions_at(event.t).xy)
         elif event.kind is ItemEventKind.RETIRED and ledger.retired == mission.target:
             result.makespan = event.t
             complete.set()
@@ -131,18 +135,19 @@ async def run_scenario(
         observe(environment)
     swarm = Swarm(mission.robots)
     try:
-        async with swarm:
-            result.status, failure = await _until_done(
-                swarm,
-                clock,
-                run.max_time,
-                run.trace_interval,
-                complete,
-                stop,
-                lambda t: _sample(
-                    t, environment, trace, progress, ledger.retired, ledger.transfers
-                ),
-            )
+        with young_generation_for(len(mission.robots)):
+            async with swarm:
+                result.status, failure = await _until_done(
+                    swarm,
+                    clock,
+                    run.max_time,
+                    run.trace_interval,
+                    complete,
+                    stop,
+                    lambda t: _sample(
+                        t, environment, trace, progress, ledger.retired, ledger.transfers
+                    ),
+                )
         if failure is not None:
             _failed(result, failure)
     except LayerError as exc:  # raised again on the way out when a layer failed

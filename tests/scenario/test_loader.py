@@ -140,8 +140,8 @@ def test_app_attribute_after_a_colon(write: WriteScenario) -> None:
             "sede = 1",
             "run",
             "unknown key 'sede' (did you mean 'seed'? expected one of: max_time, "
-            "progress_interval, restart_window, restarts, seed, time_factor, trace_interval, "
-            "transport, virtual)",
+            "progress_interval, restart_window, restarts, seed, time_factor, trace_exchanges, "
+            "trace_interval, transport, virtual)",
             id="unknown",
         ),
     ],
