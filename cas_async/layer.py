@@ -187,8 +187,12 @@ class Layer(Requesting):
         if wakes is None:
             wakes = self._wakes = set()
 
+        handle: asyncio.TimerHandle | None = None
+
         def wake() -> None:
+            nonlocal handle
             wakes.discard(handle)
+            handle = None  # wake and its handle refer to each other: no cycle left to collect
             self._inbox.nudge()
 
         handle = loop.call_at(robot.clock.loop_deadline(seconds), wake)

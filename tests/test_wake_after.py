@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import gc
 
 import cas_async
 from cas_async import MemoryTransport, Robot, Swarm, VirtualClock
@@ -60,3 +61,36 @@ def test_pending_wakes_are_cancelled_when_the_robot_stops() -> None:
         return sum(1 for handle in loop._scheduled if not handle.cancelled())  # type: ignore[attr-defined]
 
     assert cas_async.run(main(), virtual=True) == 0
+
+
+class Repeater(Recorder):
+    """Wakes itself every simulated second, ``times`` times."""
+
+    def __init__(self, times: int) -> None:
+        super().__init__()
+        self.left = times
+
+    async def inner_process(self) -> None:
+        if self.left:
+            self.left -= 1
+            self.wake_after(1.0)
+
+
+def test_fired_wakes_leave_no_garbage_for_the_cycle_collector() -> None:
+    # A timer's callback and its handle must not refer to each other once it has
+    # gone off: 10,000 robots waking every second would otherwise leave cycles that
+    # only full garbage collections free (measured: a third of a 2,500-robot run).
+    async def main() -> int:
+        repeater = Repeater(500)
+        robot = Robot(1, [repeater], clock=VirtualClock(), messages=STACK_MESSAGES)
+        async with robot:
+            gc.collect()
+            gc.disable()
+            try:
+                await robot.clock.sleep(600.0)
+                assert repeater.left == 0
+                return gc.collect()
+            finally:
+                gc.enable()
+
+    assert cas_async.run(main(), virtual=True) < 100
