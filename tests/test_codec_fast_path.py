@@ -21,7 +21,7 @@ from cas_async import stack_fingerprint as fingerprint_of
 from cas_async.codegen import compiled
 from cas_async.message import spec_of, specs_for
 
-from .test_codec_properties import PropAll, PropInner, PropSmall, same, wire_values
+from .test_codec_properties import PropAll, PropInner, PropSmall, ints64, same, wire_values
 
 
 class FastMode(IntEnum):
@@ -73,7 +73,6 @@ CLASSES = [FastAll, FastEmpty, FastWide, PropSmall, PropInner, PropAll]
 SPECS = specs_for(CLASSES)
 CODEC = Codec(SPECS, fingerprint_of(3, SPECS))
 
-ints64 = st.integers(-(2**63), 2**64 - 1)
 floats = st.floats(allow_nan=False)
 modes = st.sampled_from(FastMode)
 headers: dict[str, Any] = {"msg_id": ints64, "robot_id": ints64, "corr_id": ints64}
