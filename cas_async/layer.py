@@ -23,7 +23,6 @@ object itself) sends a copy, so a message still travelling never changes under i
 from __future__ import annotations
 
 import asyncio
-import copy
 import math
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, ClassVar, Final
@@ -375,8 +374,7 @@ class Layer(Requesting):
         assert robot is not None
         asker, asked_id = request.robot_id, request.msg_id  # before any stamping
         if request.src_layer == request.dst_layer and asker != robot.robot_id:
-            if response.msg_id:
-                response = copy.copy(response)  # sent before (or the request itself)
+            response = owned(response)  # a copy if sent before (or the request itself)
             response.msg_id = next(robot._ids)  # stamped inline: the hot path of answers
             response.robot_id = robot.robot_id
             response.src_layer = response.dst_layer = self._level

@@ -91,8 +91,7 @@ class Requesting:
             raise RuleViolation(f"{self._log.prefix}request() to its own robot {robot_id}")
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
-        if msg.msg_id:
-            msg = copy.copy(msg)  # sent before: its copy gets the new header
+        msg = owned(msg)
         # Stamped inline, as in send(): the hot path of every round trip.
         msg.msg_type = _NEGOTIATION
         msg.msg_id = msg_id = next(robot._ids)
