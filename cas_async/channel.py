@@ -77,9 +77,15 @@ class Channel(Generic[T]):
 
     def offer(self, item: T) -> bool:
         """Appends an item unless the channel is full; returns whether it did."""
-        if len(self._items) >= self.limit:
+        items = self._items
+        if len(items) >= self.limit:
             return False
-        self.put(item)
+        items.append(item)
+        waiter = self._waiter  # _wake(), inlined: every external message takes this hop
+        if waiter is not None:
+            self._waiter = None
+            if not waiter.done():
+                waiter.set_result(None)
         return True
 
     def pop(self) -> T:

@@ -2,8 +2,12 @@
 
 Every message is encoded by the sender and decoded by the receiver exactly as over
 UDP, so behaviour, limits and errors are the same; only the socket is missing.
-Delivery is scheduled with ``loop.call_soon`` (never a re-entrant call into the
-receiver), in send order, which keeps virtual-time runs deterministic.
+
+Delivery is never a re-entrant call into the receiver: what is sent to a robot
+waits in that robot's batch, and one ``loop.call_soon`` per batch hands the whole
+batch over on the loop's next pass, in send order. That keeps virtual-time runs
+deterministic, and costs one scheduled callback per receiver and pass instead of
+one per datagram (as a socket read drains what arrived).
 
 A datagram in flight when its receiver closes is still handed to the receiver's
 sink, which decides what it means: a stopped robot counts it as ``"not_running"``.
@@ -28,13 +32,22 @@ __all__ = ["MemoryTransport"]
 class MemoryEndpoint(Endpoint):
     """A robot's attachment to a :class:`MemoryTransport`."""
 
-    __slots__ = ("_closed", "_loop", "_network", "_sink", "max_datagram_size", "robot_id")
+    __slots__ = (
+        "_batch",
+        "_closed",
+        "_loop",
+        "_network",
+        "_sink",
+        "max_datagram_size",
+        "robot_id",
+    )
 
     def __init__(self, network: MemoryTransport, robot_id: RobotId, sink: DatagramSink) -> None:
         self._network = network
         self._sink = sink
         self._loop = asyncio.get_running_loop()
         self._closed = False
+        self._batch: list[tuple[bytes, RobotId]] | None = None  # sent, not yet delivered
         self.robot_id = robot_id
         self.max_datagram_size = network.max_datagram_size
 
@@ -48,11 +61,25 @@ class MemoryEndpoint(Endpoint):
         target = self._network._endpoints.get(robot_id)
         if target is None:
             raise UnknownRobotError(f"no robot {robot_id} on this MemoryTransport")
-        self._loop.call_soon(target._deliver, data, self.robot_id)
+        batch = target._batch
+        if batch is None:
+            batch = target._batch = []
+            self._loop.call_soon(target._deliver)
+        batch.append((data, self.robot_id))
 
-    def _deliver(self, data: bytes, sender: RobotId) -> None:
-        # Also after close: the sink (a stopped robot) counts what arrives late.
-        self._sink.datagram_received(data, sender)
+    def _deliver(self) -> None:
+        # Taken first: what the sink sends while it handles this batch (a reply to
+        # this very robot) starts the next batch, delivered on a later pass.
+        batch, self._batch = self._batch or (), None
+        received = self._sink.datagram_received
+        for data, sender in batch:
+            # Also after close: the sink (a stopped robot) counts what arrives late.
+            try:
+                received(data, sender)
+            except Exception as exc:  # a broken sink must not lose the rest of the batch
+                self._loop.call_exception_handler(
+                    {"message": f"robot {self.robot_id}: sink failed", "exception": exc}
+                )
 
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._network._endpoints if rid != self.robot_id]
