@@ -8,11 +8,13 @@ Clock: first send to the arrival of the last ack, read by the sender. The receiv
 side counts what it got; a run where that is not the total fails, so neither side
 can win by losing messages.
 
-``mango_one_process`` (target >= 2.0): in-process delivery on both sides. Framework:
-two robots on one ``MemoryTransport`` (every message still encoded and decoded).
-Mango: two agents in the same container (mango hands the content object over
-without encoding it). cas_async over UDP in one process is ``bench_external``'s
-``external_throughput`` (same layers and window); a row has no room for it here.
+``mango_one_process`` (target >= 2.0): in-process delivery on both sides, objects
+passed. Framework: two robots on ``MemoryTransport(pass_objects=True)``. Mango:
+two agents in the same container (mango hands the content object over without
+encoding it either). ``mango_one_process_bytes`` (target >= 1.0) is the same
+against a plain ``MemoryTransport``, which encodes and decodes every message as
+over UDP. cas_async over UDP in one process is ``bench_external``'s
+``external_throughput`` (same layers and window).
 
 ``mango_processes`` (target >= 3.0): two OS processes. Framework: robot 1 here,
 robot 2 in a child over UDP (``bench_processes.framework_processes``). Mango: a TCP
@@ -46,6 +48,7 @@ from .bench_processes import (
 __all__ = [
     "BENCHES",
     "available",
+    "framework_pass_objects",
     "framework_memory",
     "mango_processes",
     "mango_same_container",
@@ -69,7 +72,10 @@ def skip_message() -> str:
     """Why :data:`BENCHES` is empty, for the caller to print (empty when it is not)."""
     if _MISSING is None:
         return ""
-    return f"skipping mango_one_process, mango_processes: {_MISSING}; pip install -e '.[bench]'"
+    return (
+        "skipping mango_one_process, mango_one_process_bytes, mango_processes: "
+        f"{_MISSING}; pip install -e '.[bench]'"
+    )
 
 
 def _check(what: str, received: int, total: int) -> None:
@@ -77,13 +83,18 @@ def _check(what: str, received: int, total: int) -> None:
         raise RuntimeError(f"{what}: the receiver got {received} of {total} messages")
 
 
-async def framework_memory(total: int) -> float:
+async def framework_pass_objects(total: int) -> float:
+    """Two robots on one ``MemoryTransport`` passing objects; returns messages/s."""
+    return await framework_memory(total, pass_objects=True)
+
+
+async def framework_memory(total: int, *, pass_objects: bool = False) -> float:
     """Two robots on one ``MemoryTransport``; returns messages/s."""
     loop = asyncio.get_running_loop()
     go: asyncio.Future[None] = loop.create_future()
     go.set_result(None)  # nothing to wait for: both robots are in this process
     done: asyncio.Future[float] = loop.create_future()
-    memory = MemoryTransport()
+    memory = MemoryTransport(pass_objects=pass_objects)
     sender, receiver = GatedSender(total, go, done), FinalAckReceiver(total, loop.create_future())
     async with (
         Robot(RECEIVER, [receiver], transport=memory, messages=MESSAGES),
@@ -140,11 +151,20 @@ def _benches() -> list[Bench]:
         Bench(
             name="mango_one_process",
             unit="msg/s",
-            framework=framework_memory,
+            framework=framework_pass_objects,
             baseline=mango_same_container,
             size=100_000,
             quick_size=10_000,
             target=2.0,
+        ),
+        Bench(
+            name="mango_one_process_bytes",
+            unit="msg/s",
+            framework=framework_memory,
+            baseline=mango_same_container,
+            size=100_000,
+            quick_size=10_000,
+            target=1.0,
         ),
         Bench(
             name="mango_processes",

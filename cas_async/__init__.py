@@ -66,6 +66,7 @@ from .transport import (
     UdpTransport,
 )
 from .virtual_loop import VirtualTimeLoop
+from .wire_codec import PassThrough, WireCodec
 
 __version__ = "0.1.0"
 
@@ -104,6 +105,7 @@ __all__ = [
     "Middleware",
     "Motion",
     "MsgType",
+    "PassThrough",
     "Phase",
     "PiecewiseSpeed",
     "Pose",
@@ -128,6 +130,7 @@ __all__ = [
     "UnknownRobotError",
     "VirtualClock",
     "VirtualTimeLoop",
+    "WireCodec",
     "check_phases",
     "check_turn_rate",
     "closing_time",

@@ -160,6 +160,13 @@ def _command_run(args: argparse.Namespace, stdout: TextIO, stderr: TextIO) -> in
     except ConfigurationError as exc:
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE
+    if key is not None and scenario.run.pass_objects:
+        print(
+            f"error: {scenario.path}: run.pass_objects passes message objects, which the swarm key "
+            "cannot sign; turn pass_objects off (--set run.pass_objects=false) to run with a key",
+            file=stderr,
+        )
+        return EXIT_USAGE
     out = args.out or Path("runs") / f"{scenario.path.stem}-seed{scenario.run.seed}"
     try:  # before the run: a long run must not end in "cannot write"
         out.mkdir(parents=True, exist_ok=True)

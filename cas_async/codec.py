@@ -148,6 +148,11 @@ class Codec:
         self._fast_pack = msgspec.msgpack.Encoder().encode
 
     @property
+    def message_classes(self) -> frozenset[type[Message]]:
+        """The message classes this codec carries."""
+        return frozenset(self._by_class)
+
+    @property
     def max_decode_bytes(self) -> int:
         """Most bytes decoding one datagram allocates at once (see the class docs)."""
         reserved = _OPEN_ARRAYS * (8 * _FAST_ITEMS + _RESERVED_PER_ARRAY)

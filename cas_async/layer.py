@@ -23,6 +23,7 @@ object itself) sends a copy, so a message still travelling never changes under i
 from __future__ import annotations
 
 import asyncio
+import copy
 import math
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, ClassVar, Final
@@ -304,7 +305,10 @@ class Layer(Requesting):
             robot._violation("to_own_robot", self, msg)
             return
         # The header is stamped inline: this is the hot path of external traffic.
-        # No copy is needed: the message is encoded before send() returns.
+        # No copy is needed when the message is encoded before send() returns; a
+        # robot that passes objects (wire_codec.py) sends a copy of one sent before.
+        if msg.msg_id and robot._passes_objects:
+            msg = copy.copy(msg)
         msg.msg_id = next(robot._ids)
         msg.robot_id = robot.robot_id
         msg.src_layer = msg.dst_layer = self._level
@@ -353,6 +357,8 @@ class Layer(Requesting):
             ConfigurationError: the robot has no transport.
         """
         robot = self._check_live()
+        if robot._passes_objects:
+            msg = owned(msg)  # receivers may still hold it
         self._stamp(robot, msg, self._level)
         sent, unknown = robot._broadcast(msg, robots)
         counters = self._counters

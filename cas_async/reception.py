@@ -28,12 +28,12 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Final
 
 from ._types import RobotId
-from .codec import Codec
 from .dedup import DUPLICATE, ReplyCache, SenderWindows
 from .errors import DecodeError, RobotStateError, StackMismatchError, UnknownRobotError
 from .fingerprint import describe_fingerprint
 from .message import Message, MsgType
 from .transport.base import Endpoint
+from .wire_codec import WireCodec
 
 if TYPE_CHECKING:
     from .robot import Robot
@@ -44,6 +44,13 @@ _MISMATCHES_EXPLAINED: Final = 16
 """Foreign stacks whose first datagram is explained in the log; the rest are counted."""
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
+
+
+def _describe(data: object) -> str:
+    """A datagram, or a message handed over (see :mod:`cas_async.wire_codec`), in a log line."""
+    if isinstance(data, bytes | bytearray | memoryview):
+        return f"datagram of {len(data)} bytes"
+    return repr(data)
 
 
 class Reception:
@@ -69,7 +76,7 @@ class Reception:
 
     def __init__(self, robot: Robot) -> None:
         self._robot = robot
-        self._codec: Codec | None = None
+        self._codec: WireCodec | None = None
         self._endpoint: Endpoint | None = None
         self._now: Callable[[], float] | None = None
         self._mismatches_seen: set[int] = set()
@@ -78,7 +85,7 @@ class Reception:
         self.replies_resent = 0
         self.running = False  # set by the robot between start and stop
 
-    def attach(self, codec: Codec, endpoint: Endpoint, now: Callable[[], float]) -> None:
+    def attach(self, codec: WireCodec, endpoint: Endpoint, now: Callable[[], float]) -> None:
         """Starts receiving with ``codec`` on ``endpoint``; ``now()`` dates each sender's news."""
         self._codec = codec
         self._endpoint = endpoint
@@ -89,7 +96,7 @@ class Reception:
         robot = self._robot
         codec = self._codec
         if not self.running or codec is None:
-            robot._drop("not_running", f"datagram of {len(data)} bytes while not running")
+            robot._drop("not_running", f"{_describe(data)} while not running")
             return
         try:
             msg = codec.decode(data)

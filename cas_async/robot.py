@@ -18,6 +18,7 @@ exception as ``__cause__``.
 from __future__ import annotations
 
 import asyncio
+import copy
 import enum
 import itertools
 from collections.abc import Iterable, Sequence
@@ -43,6 +44,7 @@ from .reception import Reception
 from .supervision import RestartPolicy, run_layer
 from .transport.base import Endpoint, Transport
 from .transport.unconnected import Unconnected
+from .wire_codec import WireCodec
 
 __all__ = ["Robot", "RobotState"]
 
@@ -114,7 +116,8 @@ class Robot:
         self._drops = DropLog(self._log)
         self._state = RobotState.CREATED
         self._endpoint: Endpoint = Unconnected(robot_id)
-        self._codec: Codec | None = None
+        self._codec: WireCodec | None = None
+        self._passes_objects = False  # whether receivers get the very objects sent (wire_codec.py)
         self._supervisor: asyncio.Task[None] | None = None
         self._finished: asyncio.Future[None] | None = None
         self._stop_requested: asyncio.Event | None = None
@@ -240,10 +243,14 @@ class Robot:
             self._endpoint = await self.transport.open(self.robot_id, self._reception)
         limit = min(self._max_datagram_size, self._endpoint.max_datagram_size)
         try:
-            self._codec = Codec(specs, fingerprint, limit)
+            codec = Codec(specs, fingerprint, limit)
+            self._codec = (
+                codec if self.transport is None else self.transport.wire_codec(self.robot_id, codec)
+            )
         except BaseException:
             self._close()  # the socket must not outlive a robot that never started
             raise
+        self._passes_objects = self._codec is not codec
         self._reception.attach(self._codec, self._endpoint, loop.time)
 
     def _start(self) -> None:
@@ -431,6 +438,8 @@ class Robot:
         for robot_id in endpoint.peers() if robots is None else robots:
             if robot_id == self.robot_id:
                 continue
+            if sent and self._passes_objects:  # each receiver gets a message of its own
+                data = self._codec.encode(copy.copy(msg))  # type: ignore[union-attr]
             try:
                 endpoint.send(robot_id, data)
             except UnknownRobotError:

@@ -76,14 +76,16 @@ def test_the_two_process_benchmark_runs(bench: Bench) -> None:
 def test_the_mango_benchmarks_are_listed_when_mango_imports() -> None:
     names = [b.name for b in bench_mango.BENCHES]
     if bench_mango.available():
-        assert names == ["mango_one_process", "mango_processes"]
+        assert names == ["mango_one_process", "mango_one_process_bytes", "mango_processes"]
         assert bench_mango.skip_message() == ""
     else:
         assert names == []
         assert "pip install" in bench_mango.skip_message()
 
 
-@pytest.mark.parametrize("name", ["mango_one_process", "mango_processes"])
+@pytest.mark.parametrize(
+    "name", ["mango_one_process", "mango_one_process_bytes", "mango_processes"]
+)
 def test_the_mango_benchmarks_run(name: str) -> None:
     pytest.importorskip("mango")
     (bench,) = [b for b in bench_mango.BENCHES if b.name == name]

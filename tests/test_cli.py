@@ -448,3 +448,14 @@ def test_an_unusable_key_file_is_refused_before_the_run(tmp_path: Path) -> None:
     assert finished.stderr.startswith("error:")
     assert str(key_file) in finished.stderr
     assert finished.stdout == ""
+
+
+def test_a_key_with_objects_passed_is_refused_before_the_run(tmp_path: Path) -> None:
+    key_file = tmp_path / "swarm.key"
+    key_file.write_text("ab" * 32 + "\n")
+    key_file.chmod(0o600)
+    args = ("--set", "run.pass_objects=true", "--key-file", key_file, "--out", tmp_path / "o")
+    finished = run_cli("run", SHIPPED, *FAST, *args)
+    assert finished.code == 2
+    assert finished.stderr.startswith(f"error: {SHIPPED}: run.pass_objects"), finished.stderr
+    assert not (tmp_path / "o").exists()

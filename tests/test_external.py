@@ -26,9 +26,11 @@ from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
 
 
-@pytest.fixture(params=["memory", "udp"])
+@pytest.fixture(params=["memory", "pass_objects", "udp"])
 def transport(request: pytest.FixtureRequest) -> MemoryTransport | UdpTransport:
-    return MemoryTransport() if request.param == "memory" else UdpTransport()
+    if request.param == "udp":
+        return UdpTransport()
+    return MemoryTransport(pass_objects=request.param == "pass_objects")
 
 
 async def wait_for(condition, timeout: float = 5.0) -> None:

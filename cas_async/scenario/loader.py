@@ -78,6 +78,10 @@ class RunConfig:
             scaled real time.
         time_factor: with real time, simulated seconds per wall second.
         transport: ``"udp"`` (real sockets on localhost) or ``"memory"`` (in process).
+        pass_objects: with the memory transport, pass message objects instead of
+            encoding them (see :mod:`cas_async.wire_codec`): faster, without the
+            datagram size and encodability checks. Not with ``[faults]``, which act
+            on bytes.
         max_time: simulated seconds after which the run gives up (timed out).
         trace_interval: simulated seconds between two samples of robot positions.
         trace_exchanges: also snapshot every robot's position right after each
@@ -95,6 +99,9 @@ class RunConfig:
     virtual: bool = setting(False, doc="virtual time instead of scaled real time")
     time_factor: float = setting(50.0, gt=0, doc="simulated seconds per wall second")
     transport: Literal["udp", "memory"] = setting("udp", doc="how robots exchange messages")
+    pass_objects: bool = setting(
+        False, doc="memory transport: pass message objects instead of encoding them"
+    )
     max_time: float = setting(3600.0, gt=0, doc="simulated seconds before the run gives up")
     trace_interval: float = setting(1.0, gt=0, doc="simulated seconds between position samples")
     trace_exchanges: bool = setting(
@@ -343,6 +350,23 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
                 "run.transport",
                 'virtual time needs the memory transport: set transport = "memory", '
                 "or run on scaled real time (virtual = false)",
+            )
+        )
+    if run is not None and run.pass_objects and run.transport != "memory":
+        problems.append(
+            ("run.pass_objects", 'objects are passed only in memory: set transport = "memory"')
+        )
+    if (
+        run is not None
+        and run.pass_objects
+        and faults is not None
+        and faults.delay[0] <= faults.delay[1]  # else reported above
+        and faults.as_faults().any
+    ):
+        problems.append(
+            (
+                "run.pass_objects",
+                "[faults] act on datagrams (bytes): turn pass_objects off to use them",
             )
         )
     if problems or app is None or run is None or world is None or faults is None:

@@ -20,7 +20,7 @@ from typing import TextIO
 import numpy as np
 
 from ..clock import Clock, ScaledClock, VirtualClock
-from ..errors import LayerError
+from ..errors import ConfigurationError, LayerError
 from ..sim.environment import Environment
 from ..sim.items import ItemEvent, ItemEventKind
 from ..swarm import Swarm
@@ -43,7 +43,16 @@ __all__ = ["run_scenario"]
 def _transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transport:
     """The run's transport: the ``[faults]`` on the wire, if any, and signed with ``key``."""
     run = scenario.run
-    transport: Transport = MemoryTransport() if run.transport == "memory" else UdpTransport()
+    if run.pass_objects and key is not None:
+        raise ConfigurationError(
+            f"{scenario.path}: run.pass_objects passes message objects, which a swarm key cannot "
+            "sign; turn pass_objects off to run with a key"
+        )
+    transport: Transport = (
+        MemoryTransport(pass_objects=run.pass_objects)
+        if run.transport == "memory"
+        else UdpTransport()
+    )
     faults = scenario.faults.as_faults()
     if faults.any:
         seed = run.seed if scenario.faults.seed is None else scenario.faults.seed

@@ -13,9 +13,13 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Iterable
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from .._types import Address, RobotId
+
+if TYPE_CHECKING:
+    from ..codec import Codec
+    from ..wire_codec import WireCodec
 
 __all__ = ["DatagramSink", "Endpoint", "LossCounter", "Transport", "drop_socket_error"]
 
@@ -104,3 +108,15 @@ class Transport(ABC):
         Raises:
             ConfigurationError: the robot id is already attached, or cannot be bound.
         """
+
+    def wire_codec(self, robot_id: RobotId, codec: Codec) -> WireCodec:
+        """What robot ``robot_id`` turns its messages into for this transport, and back.
+
+        ``codec`` (bytes) for a transport that moves bytes, as every transport that
+        may leave the process does; an in-process transport that passes message
+        objects returns a :class:`~cas_async.wire_codec.PassThrough`.
+
+        Raises:
+            ConfigurationError: the robot cannot use this transport with that codec.
+        """
+        return codec

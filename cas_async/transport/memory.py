@@ -9,6 +9,10 @@ batch over on the loop's next pass, in send order. That keeps virtual-time runs
 deterministic, and costs one scheduled callback per receiver and pass instead of
 one per datagram (as a socket read drains what arrived).
 
+With ``pass_objects=True`` the transport carries message objects instead (see
+:mod:`cas_async.wire_codec`): no encoding, no decoding, and none of their checks.
+The endpoints below do not look at what they carry.
+
 A datagram in flight when its receiver closes is still handed to the receiver's
 sink, which decides what it means: a stopped robot counts it as ``"not_running"``.
 Nothing sent is lost without a count.
@@ -18,12 +22,17 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Iterable
-from typing import final
+from typing import TYPE_CHECKING, final
 
 from .._types import Address, RobotId
 from ..codec import DEFAULT_MAX_DATAGRAM
 from ..errors import ConfigurationError, RobotStateError, UnknownRobotError
+from ..wire_codec import PassThrough
 from .base import DatagramSink, Endpoint, Transport
+
+if TYPE_CHECKING:
+    from ..codec import Codec
+    from ..wire_codec import WireCodec
 
 __all__ = ["MemoryTransport"]
 
@@ -100,12 +109,20 @@ class MemoryTransport(Transport):
 
     Args:
         max_datagram_size: largest datagram, as for a real network.
+        pass_objects: pass message objects to the receivers instead of encoding them
+            (see :mod:`cas_async.wire_codec`): faster, but without the size limit and
+            encodability checks of a network, so a message that would be refused
+            over UDP goes through. Robots on it must run identical stacks.
     """
 
     supports_virtual_time = True
 
-    def __init__(self, max_datagram_size: int = DEFAULT_MAX_DATAGRAM) -> None:
+    def __init__(
+        self, max_datagram_size: int = DEFAULT_MAX_DATAGRAM, *, pass_objects: bool = False
+    ) -> None:
         self.max_datagram_size = max_datagram_size
+        self.pass_objects = pass_objects
+        self._pass_through: PassThrough | None = None  # made for the first robot, shared
         self._endpoints: dict[RobotId, MemoryEndpoint] = {}
 
     async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
@@ -117,5 +134,20 @@ class MemoryTransport(Transport):
         endpoint = self._endpoints[robot_id] = MemoryEndpoint(self, robot_id, sink)
         return endpoint
 
+    def wire_codec(self, robot_id: RobotId, codec: Codec) -> WireCodec:
+        """``codec`` (bytes), or with ``pass_objects`` the :class:`PassThrough` of this transport.
+
+        Raises:
+            ConfigurationError: with ``pass_objects``, the robot's stack differs from the
+                first robot's.
+        """
+        if not self.pass_objects:
+            return codec
+        if self._pass_through is None:
+            self._pass_through = PassThrough(codec, robot_id)
+            return self._pass_through
+        return self._pass_through.admit(robot_id, codec)
+
     def __repr__(self) -> str:
-        return f"MemoryTransport({len(self._endpoints)} robots)"
+        kind = ", passing objects" if self.pass_objects else ""
+        return f"MemoryTransport({len(self._endpoints)} robots{kind})"

@@ -139,7 +139,7 @@ def test_app_attribute_after_a_colon(write: WriteScenario) -> None:
         pytest.param(
             "sede = 1",
             "run",
-            "unknown key 'sede' (did you mean 'seed'? expected one of: max_time, "
+            "unknown key 'sede' (did you mean 'seed'? expected one of: max_time, pass_objects, "
             "progress_interval, restart_window, restarts, seed, time_factor, trace_exchanges, "
             "trace_interval, transport, virtual)",
             id="unknown",
@@ -458,3 +458,19 @@ def test_virtual_time_defaults_to_the_memory_transport(tmp_path: Path) -> None:
     assert load_scenario(path).run.transport == "memory"
     with pytest.raises(ScenarioError, match=r"run\.transport: virtual time needs the memory"):
         load_scenario(path, ['run.transport="udp"'])
+
+
+def test_objects_are_passed_only_in_memory_and_without_faults(tmp_path: Path) -> None:
+    path = tmp_path / "objects.toml"
+    path.write_text(
+        'app = "tests.scenario.fake_app"\n'
+        "[run]\nvirtual = true\npass_objects = true\n"
+        "[world]\nwidth = 1.0\nheight = 1.0\n"
+    )
+    assert load_scenario(path).run.pass_objects
+    with pytest.raises(
+        ScenarioError, match=r"run\.pass_objects: objects are passed only in memory"
+    ):
+        load_scenario(path, ["run.virtual=false", 'run.transport="udp"'])
+    with pytest.raises(ScenarioError, match=r"run\.pass_objects: \[faults\] act on datagrams"):
+        load_scenario(path, ["faults.loss=0.1"])
