@@ -47,7 +47,7 @@ _NEGOTIATION: Final = MsgType.NEGOTIATION
 
 
 def _describe(data: object) -> str:
-    """A datagram, or a message handed over (see :mod:`cas_async.wire_codec`), in a log line."""
+    """A datagram, or a message passed as an object (see :mod:`cas_async.wire_codec`), in a log."""
     if isinstance(data, bytes | bytearray | memoryview):
         return f"datagram of {len(data)} bytes"
     return repr(data)

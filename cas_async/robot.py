@@ -44,7 +44,7 @@ from .reception import Reception
 from .supervision import RestartPolicy, run_layer
 from .transport.base import Endpoint, Transport
 from .transport.unconnected import Unconnected
-from .wire_codec import WireCodec
+from .wire_codec import PassThrough, WireCodec
 
 __all__ = ["Robot", "RobotState"]
 
@@ -250,7 +250,7 @@ class Robot:
         except BaseException:
             self._close()  # the socket must not outlive a robot that never started
             raise
-        self._passes_objects = self._codec is not codec
+        self._passes_objects = isinstance(self._codec, PassThrough)
         self._reception.attach(self._codec, self._endpoint, loop.time)
 
     def _start(self) -> None:
