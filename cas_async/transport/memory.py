@@ -1,4 +1,4 @@
-"""An in-process transport that still moves bytes.
+"""An in-process transport: bytes exactly as over UDP, or, if asked, the message objects.
 
 Every message is encoded by the sender and decoded by the receiver exactly as over
 UDP, so behaviour, limits and errors are the same; only the socket is missing.
