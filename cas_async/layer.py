@@ -23,7 +23,6 @@ object itself) sends a copy, so a message still travelling never changes under i
 from __future__ import annotations
 
 import asyncio
-import copy
 import math
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, ClassVar, Final
@@ -307,8 +306,8 @@ class Layer(Requesting):
         # The header is stamped inline: this is the hot path of external traffic.
         # No copy is needed when the message is encoded before send() returns; a
         # robot that passes objects (wire_codec.py) sends a copy of one sent before.
-        if msg.msg_id and robot._passes_objects:
-            msg = copy.copy(msg)
+        if robot._passes_objects:
+            msg = owned(msg)
         msg.msg_id = next(robot._ids)
         msg.robot_id = robot.robot_id
         msg.src_layer = msg.dst_layer = self._level
