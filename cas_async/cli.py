@@ -24,7 +24,15 @@ from typing import Final, TextIO
 
 from .errors import ConfigurationError
 from .runner import run
-from .scenario import RunResult, RunStatus, Scenario, ScenarioError, load_scenario, run_scenario
+from .scenario import (
+    RunResult,
+    RunStatus,
+    Scenario,
+    ScenarioError,
+    check_key,
+    load_scenario,
+    run_scenario,
+)
 from .scenario.report import summary_table, write_results
 from .scenario.trace import Trace
 from .swarm_key import SwarmKey
@@ -157,15 +165,9 @@ def _command_run(args: argparse.Namespace, stdout: TextIO, stderr: TextIO) -> in
         return EXIT_USAGE
     try:
         key = SwarmKey.from_file(args.key_file) if args.key_file else SwarmKey.from_env()
+        check_key(scenario, key)  # before the run, as every other refusal
     except ConfigurationError as exc:
         print(f"error: {exc}", file=stderr)
-        return EXIT_USAGE
-    if key is not None and scenario.run.pass_objects:
-        print(
-            f"error: {scenario.path}: run.pass_objects passes message objects, which the swarm key "
-            "cannot sign; turn pass_objects off (--set run.pass_objects=false) to run with a key",
-            file=stderr,
-        )
         return EXIT_USAGE
     out = args.out or Path("runs") / f"{scenario.path.stem}-seed{scenario.run.seed}"
     try:  # before the run: a long run must not end in "cannot write"

@@ -25,7 +25,7 @@ from .plots import write_plots
 from .progress import Progress
 from .report import results_dict, statistics, summary_table, write_results
 from .results import RunResult, RunStatus
-from .runner import run_scenario
+from .runner import check_key, run_scenario
 from .trace import Trace
 
 __all__ = [
@@ -42,6 +42,7 @@ __all__ = [
     "Trace",
     "WorldConfig",
     "apply_overrides",
+    "check_key",
     "from_toml",
     "load_scenario",
     "parse_override",

@@ -37,17 +37,22 @@ from .progress import Progress
 from .results import RunResult, RunStatus
 from .trace import Trace
 
-__all__ = ["run_scenario"]
+__all__ = ["check_key", "run_scenario"]
+
+
+def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
+    """Raises ``ConfigurationError`` when ``scenario`` cannot run signed with ``key``."""
+    if scenario.run.pass_objects and key is not None:
+        raise ConfigurationError(
+            f"{scenario.path}: run.pass_objects passes message objects, which a swarm key cannot "
+            "sign; set run.pass_objects = false to run with a key"
+        )
 
 
 def _transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transport:
     """The run's transport: the ``[faults]`` on the wire, if any, and signed with ``key``."""
     run = scenario.run
-    if run.pass_objects and key is not None:
-        raise ConfigurationError(
-            f"{scenario.path}: run.pass_objects passes message objects, which a swarm key cannot "
-            "sign; turn pass_objects off to run with a key"
-        )
+    check_key(scenario, key)
     transport: Transport = (
         MemoryTransport(pass_objects=run.pass_objects)
         if run.transport == "memory"
