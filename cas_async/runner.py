@@ -2,7 +2,9 @@
 
 ``cas_async.run(main())`` is ``asyncio.run`` with the loop this package wants:
 uvloop when it is installed (set ``CAS_ASYNC_UVLOOP=0`` or pass ``use_uvloop=False``
-to opt out), or the virtual-time loop when ``virtual=True``.
+to opt out), or the virtual-time loop when ``virtual=True``. The stdlib loop it
+makes waits out timers to the microsecond (:mod:`cas_async.precise_selector`);
+uvloop's timers keep whole milliseconds.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import os
 from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar
 
+from .precise_selector import precise_selector_available
 from .virtual_loop import VirtualTimeLoop
 
 __all__ = ["loop_factory", "run", "uvloop_available"]
@@ -44,7 +47,8 @@ def loop_factory(
     Args:
         virtual: virtual time (always the stdlib-based :class:`VirtualTimeLoop`).
         use_uvloop: ``None`` follows ``CAS_ASYNC_UVLOOP`` (default on); ``False``
-            forces the stdlib loop. Ignored when ``virtual`` is true.
+            forces the stdlib loop (with microsecond timers on Linux, which
+            scaled runs at large time factors want). Ignored when ``virtual`` is true.
     """
     if virtual:
         return VirtualTimeLoop
@@ -53,7 +57,15 @@ def loop_factory(
 
         factory: Callable[[], asyncio.AbstractEventLoop] = uvloop.new_event_loop
         return factory
+    if precise_selector_available():
+        return _precise_stdlib_loop
     return asyncio.new_event_loop
+
+
+def _precise_stdlib_loop() -> asyncio.AbstractEventLoop:
+    from .precise_selector import PreciseEpollSelector  # defined on Linux only
+
+    return asyncio.SelectorEventLoop(PreciseEpollSelector())
 
 
 def run(

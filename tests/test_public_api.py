@@ -43,6 +43,9 @@ def test_every_public_name_of_every_module_is_exported() -> None:
         "Channel",
         "DEFAULT_QUEUE_LIMIT",
         "MAX_UDP_PAYLOAD",
+        # the stdlib loop's selector: loop_factory() is how applications get it
+        "PreciseEpollSelector",
+        "precise_selector_available",
         "SocketWire",
         "HEADER_LEN",
         "Compiled",
