@@ -27,6 +27,8 @@ from cas_async import (
 )
 from cas_async.message import specs_for
 
+from ._table import print_aligned
+
 LOOPBACK = "127.0.0.1"
 SOCKET_BUFFER = 4 * 1024 * 1024  # what UdpTransport asks for; the baselines ask the same
 WAIT_LIMIT = 60.0  # seconds any one measurement may take before it is abandoned
@@ -163,12 +165,7 @@ def print_table(rows: Sequence[dict[str, object]]) -> None:
         verdict = "PASS" if r["passed"] else "FAIL"
         lines.append((str(r["benchmark"]), str(r["loop"]), *numbers, f"{r['ratio']:.3f}",
                       str(r["target"]), verdict))  # fmt: skip
-    widths = [max(map(len, column)) for column in zip(*lines, strict=True)]
-    for i, line in enumerate(lines):
-        pairs = enumerate(zip(line, widths, strict=True))
-        print("  ".join(c.ljust(w) if j < 2 else c.rjust(w) for j, (c, w) in pairs))
-        if i == 0:
-            print("  ".join("-" * w for w in widths))
+    print_aligned(lines, left=(0, 1))
 
 
 def main(benches: Sequence[Bench], argv: Sequence[str] | None = None) -> int:

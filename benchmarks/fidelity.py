@@ -39,6 +39,8 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
 
+from ._table import print_aligned
+
 SCENARIO = "apps/fire_brigade/scenarios/thesis_5_8_2.toml"
 FACTORS = (10, 20, 50, 100, 200, 500, 1000)
 TARGETS = (10, 100)
@@ -147,16 +149,7 @@ def print_table(rows: Sequence[dict[str, object]]) -> None:
             f"{r['sd_virtual']:.2f}", f"{r['sd_scaled']:.2f}", f"{r['wall_per_run_s']:.2f}",
             f"{r['dropped_per_run']:.1f}", "yes" if r["within"] else "NO",
         ))  # fmt: skip
-    widths = [max(map(len, column)) for column in zip(*lines, strict=True)]
-    for i, line in enumerate(lines):
-        print(
-            "  ".join(
-                c.rjust(w) if j != 1 else c.ljust(w)
-                for j, (c, w) in enumerate(zip(line, widths, strict=True))
-            )
-        )
-        if i == 0:
-            print("  ".join("-" * w for w in widths))
+    print_aligned(lines, left=(1,))
 
 
 def _factors(text: str) -> list[float]:

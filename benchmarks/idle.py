@@ -45,6 +45,7 @@ from cas_async import (
 from cas_async.transport.fd_limit import ensure_descriptors
 
 from ._common import LOOPBACK
+from ._table import print_aligned
 
 LAYERS = 5
 TARGET = 0.01  # of one core
@@ -128,12 +129,7 @@ def print_table(rows: Sequence[dict[str, object]]) -> None:
             f"{r['wakeups_per_s']:,.0f}", f"< {100 * TARGET:g}%",
             "PASS" if r["ok"] else "FAIL",
         ))  # fmt: skip
-    widths = [max(map(len, column)) for column in zip(*lines, strict=True)]
-    for i, line in enumerate(lines):
-        pairs = enumerate(zip(line, widths, strict=True))
-        print("  ".join(c.ljust(w) if j < 3 else c.rjust(w) for j, (c, w) in pairs))
-        if i == 0:
-            print("  ".join("-" * w for w in widths))
+    print_aligned(lines, left=(0, 1, 2))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -47,6 +47,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Final
 
+from ._table import print_aligned
+
 ROOT: Final = Path(__file__).resolve().parent.parent
 SCENARIOS: Final = ROOT / "apps" / "fire_brigade" / "scenarios"
 THESIS: Final = SCENARIOS / "thesis_5_8_2.toml"
@@ -217,11 +219,7 @@ def print_table(rows: Sequence[dict[str, Any]], thesis: dict[str, Any] | None) -
                       f"{r['rss_per_robot_kib']:.1f}", growth,
                       f"{r['wall_per_robot_sim_s_us']:.1f}",
                       "PASS" if r["passed"] else "FAIL"))  # fmt: skip
-    widths = [max(map(len, column)) for column in zip(*lines, strict=True)]
-    for i, line in enumerate(lines):
-        print("  ".join(c.rjust(w) for c, w in zip(line, widths, strict=True)))
-        if i == 0:
-            print("  ".join("-" * w for w in widths))
+    print_aligned(lines)
     checked = [r for r in rows if "linear_ratio" in r]
     for r in checked:
         print(

@@ -31,6 +31,8 @@ from collections.abc import Callable
 
 from cas_async import loop_factory, uvloop_available
 
+from ._table import print_aligned
+
 SEED = 5
 
 
@@ -85,12 +87,13 @@ def main(argv: list[str] | None = None) -> int:
             "median_us": round(median, 1), "p90_us": round(p90, 1), "max_us": round(worst, 1),
             "early": round(early, 3),
         })  # fmt: skip
-    print(f"{'loop':<24} {'median us':>10} {'p90 us':>10} {'max us':>10} {'early':>7}")
+    lines = [("loop", "median us", "p90 us", "max us", "early")]
     for row in rows:
-        print(
-            f"{row['loop']:<24} {row['median_us']:>10} {row['p90_us']:>10} {row['max_us']:>10}"
-            f" {row['early']:>7.1%}"
-        )
+        lines.append((
+            str(row["loop"]), f"{row['median_us']:.1f}", f"{row['p90_us']:.1f}",
+            f"{row['max_us']:.1f}", f"{row['early']:.1%}",
+        ))  # fmt: skip
+    print_aligned(lines, left=(0,))
     for row in rows:
         print(json.dumps(row))
     return 0
