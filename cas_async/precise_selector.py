@@ -49,9 +49,9 @@ if sys.platform == "linux":
             """Waits up to ``timeout`` seconds (``None``: for ever) for a registered descriptor."""
             if timeout is None or timeout <= 0 or not self._precise:
                 return super().select(timeout)
-            deadline = time.monotonic() + timeout
             whole_ms = math.floor(timeout * 1e3)
             if whole_ms > 0:
+                deadline = time.monotonic() + timeout
                 # A hair under: the stdlib rounds up, and 7 * 1e-3 * 1e3 is 7.000000000000001.
                 ready = super().select(whole_ms * 1e-3 - 1e-7)
                 if ready:
