@@ -207,6 +207,53 @@ def test_a_configured_address_outlives_the_robot_and_is_bound_again(use_uvloop: 
     ]
 
 
+# -- receive buffers: a kernel cap below what was asked is reported, once ------------------
+
+
+def _receive_buffer_cap() -> int | None:
+    """The kernel's cap on SO_RCVBUF (Linux's net.core.rmem_max), if this system has one."""
+    try:
+        with open("/proc/sys/net/core/rmem_max") as cap:
+            return int(cap.read())
+    except OSError:
+        return None
+
+
+def _buffer_records(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if "UDP receive buffers" in r.getMessage()]
+
+
+async def test_a_receive_buffer_capped_by_the_kernel_is_reported_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    cap = _receive_buffer_cap()
+    if cap is None or cap > 2**28:
+        pytest.skip("needs Linux's net.core.rmem_max below 256 MiB")
+    asked = 4 * cap  # Linux grants at most the cap, and reads back twice what it grants
+    transport = UdpTransport(receive_buffer=asked)
+    endpoints = [await transport.open(robot_id, RecordingSink()) for robot_id in (1, 2, 3)]
+    try:
+        records = _buffer_records(caplog)
+        assert len(records) == 1, records  # three robots, one line
+        assert f"asked {asked} bytes" in records[0]
+        assert f"net.core.rmem_max={asked}" in records[0]
+        sock = endpoints[0]._transport.get_extra_info("socket")
+        granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        assert f"the kernel grants {granted};" in records[0]
+    finally:
+        for endpoint in endpoints:
+            endpoint.close()
+
+
+async def test_a_receive_buffer_granted_in_full_is_not_reported(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    transport = UdpTransport(receive_buffer=64 * 1024)  # below any kernel's cap
+    endpoint = await transport.open(1, RecordingSink())
+    endpoint.close()
+    assert _buffer_records(caplog) == []
+
+
 # -- SocketWire: the send backlog is bounded and every loss is counted ----------------------
 #
 # UDP on loopback never refuses a send (the kernel hands the datagram over at once),

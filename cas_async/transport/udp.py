@@ -10,7 +10,8 @@ same address again, where the others keep sending.
 
 Receive buffers are enlarged (4 MiB asked; the kernel caps it at ``rmem_max``)
 because the stdlib loop reads one datagram per loop pass and a burst would
-otherwise overflow the default buffer and be dropped by the kernel.
+otherwise overflow the default buffer and be dropped by the kernel. When the kernel
+grants less than asked, the transport logs it once, with the setting to raise.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import ipaddress
+import logging
 import socket
 import warnings
 from collections.abc import Iterable, Iterator, Mapping
@@ -35,6 +37,8 @@ MAX_UDP_PAYLOAD: Final = 65_507
 """Largest IPv4 UDP payload; larger datagrams cannot be sent."""
 
 _DEFAULT_BUFFER: Final = 4 * 1024 * 1024
+
+_log = logging.getLogger(__name__)
 
 HostPort = tuple[str, int]
 
@@ -271,6 +275,7 @@ class UdpTransport(Transport):
         self.receive_buffer = receive_buffer
         self.send_buffer = send_buffer
         self._open: dict[RobotId, UdpEndpoint] = {}
+        self._capped_buffer_logged = False  # once per transport, not once per robot
 
     async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
         """Binds a socket for the robot: its configured address, else ``host`` on any port.
@@ -297,6 +302,7 @@ class UdpTransport(Transport):
             # The kernel may refuse sizes above its cap; its default then stays.
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.SOL_SOCKET, option, size)
+        self._check_receive_buffer(sock)
         # The sockname is an IP literal even when ``host`` is a name: fit for the directory.
         host, port = transport.get_extra_info("sockname")[:2]
         registered: HostPort | None = None
@@ -327,6 +333,31 @@ class UdpTransport(Transport):
                 endpoint.close()
                 raise
         return endpoint
+
+    def _check_receive_buffer(self, sock: socket.socket) -> None:
+        """Logs once when the kernel grants a smaller receive buffer than asked.
+
+        Nothing fails: robots still talk, but a burst larger than the buffer is
+        dropped by the kernel before any robot can count it, so the user must hear
+        of it. Linux doubles the size it sets (room for its own bookkeeping) and
+        reads back the doubled value, so a buffer granted in full reads back at
+        least the size asked.
+        """
+        if self._capped_buffer_logged:
+            return
+        granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        if granted >= self.receive_buffer:
+            return
+        self._capped_buffer_logged = True
+        _log.warning(
+            "UDP receive buffers: asked %d bytes, the kernel grants %d; a burst larger "
+            "than that is dropped before any robot sees it. Raise the kernel's cap (on "
+            "Linux: sysctl -w net.core.rmem_max=%d), or ask less with "
+            "UdpTransport(receive_buffer=...) where bursts stay small",
+            self.receive_buffer,
+            granted,
+            self.receive_buffer,
+        )
 
     @staticmethod
     async def _bind(loop: asyncio.AbstractEventLoop, bind: HostPort, receiver: _Protocol) -> _Wire:
