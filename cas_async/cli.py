@@ -152,7 +152,12 @@ def _write_outputs(
 
         title = f"{result.app}, {scenario.path.name}, seed {result.seed}"
         written += write_plots(
-            trace, result.groups, (scenario.world.width, scenario.world.height), out, title=title
+            trace,
+            result.groups,
+            (scenario.world.width, scenario.world.height),
+            out,
+            title=title,
+            exchanges_traced=scenario.run.trace_exchanges,
         )
     return written
 

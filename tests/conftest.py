@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import AsyncIterator, Callable, Sequence
 from contextlib import AsyncExitStack
+from typing import Any
 
 import pytest
 
@@ -40,3 +41,19 @@ async def settle(rounds: int = 20) -> None:
     """Lets queued callbacks and layer tasks run (no real waiting)."""
     for _ in range(rounds):
         await asyncio.sleep(0)
+
+
+@pytest.fixture
+def plot_notes(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The texts of the notes the figures draw instead of an empty panel, in order."""
+    from cas_async.scenario import plots  # imports matplotlib only when plotting
+
+    notes: list[str] = []
+    draw = plots._note
+
+    def recording_note(axes: Any, text: str) -> None:
+        notes.append(text)
+        draw(axes, text)
+
+    monkeypatch.setattr(plots, "_note", recording_note)
+    return notes

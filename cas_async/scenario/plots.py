@@ -36,6 +36,7 @@ def write_plots(
     out_dir: Path,
     *,
     title: str,
+    exchanges_traced: bool = True,
 ) -> list[Path]:
     """Writes the three figures of a run to ``out_dir``.
 
@@ -55,6 +56,9 @@ def write_plots(
         world: ``(width, height)`` of the area, with its corner at ``(0, 0)``.
         out_dir: where to write (created if missing).
         title: shown above every figure (e.g. the app's name and the seed).
+        exchanges_traced: whether the run recorded exchange snapshots (``[run]
+            trace_exchanges``); when not, the exchange figure says so rather than
+            "no exchanges recorded".
 
     Returns:
         The paths written, in the order above.
@@ -96,7 +100,12 @@ def write_plots(
     ]
     figure = _panels(f"{title}: snapshots by exchange", panels, rows, world)
     if not panels:
-        _note(figure.add_subplot(), "no exchanges recorded")
+        _note(
+            figure.add_subplot(),
+            "no exchanges recorded"
+            if exchanges_traced
+            else "exchange snapshots switched off\n([run] trace_exchanges = false)",
+        )
     paths.append(_save(figure, out_dir / "snapshots_by_exchange.png"))
 
     times = trace.times

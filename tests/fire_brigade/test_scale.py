@@ -6,7 +6,9 @@ by test_scenarios); the large ones are for ``python -m benchmarks.scale``.
 
 from __future__ import annotations
 
+import io
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -14,6 +16,7 @@ from apps.fire_brigade.base import Peers
 from apps.fire_brigade.config import FireBrigadeConfig, Stations
 from apps.fire_brigade.messages import Kind
 from cas_async import LayerError
+from cas_async.cli import main
 from cas_async.scenario import RunStatus, ScenarioError, load_scenario
 from tests.fire_brigade.helpers import SCENARIOS, run_checked
 from tests.fire_brigade.test_layers import NORTH, SOUTH, Brigade, Spot, play
@@ -120,6 +123,16 @@ def test_without_exchange_snapshots_the_trace_has_only_samples() -> None:
     assert result.exchanges > 0
     assert len(trace.exchange_counts) == 0
     assert len(trace.times) > 0
+
+
+def test_the_cli_says_the_exchange_figure_is_empty_because_snapshots_were_off(
+    tmp_path: Path, plot_notes: list[str]
+) -> None:
+    argv = ["run", str(SCENARIOS / "thesis_5_8_2.toml"), "--virtual", "--out", str(tmp_path)]
+    argv += ["--set", "mission.buckets=2", "--set", "run.trace_exchanges=false"]
+    assert main(argv, stdout=io.StringIO(), stderr=io.StringIO()) == 0
+    assert (tmp_path / "snapshots_by_exchange.png").exists()
+    assert plot_notes == ["exchange snapshots switched off\n([run] trace_exchanges = false)"]
 
 
 # -- finding the Sinks nearby -------------------------------------------------------------------

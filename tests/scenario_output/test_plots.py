@@ -66,6 +66,28 @@ def test_without_records_each_figure_is_a_note(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
+    ("traced", "note"),
+    [
+        pytest.param(True, "no exchanges recorded", id="traced-none-happened"),
+        pytest.param(False, "exchange snapshots switched off", id="switched-off"),
+    ],
+)
+def test_the_empty_exchange_figure_says_why_it_is_empty(
+    tmp_path: Path, plot_notes: list[str], traced: bool, note: str
+) -> None:
+    write_plots(
+        walking_trace(samples=3, exchanges=0),
+        GROUPS,
+        (60.0, 50.0),
+        tmp_path,
+        title="t",
+        exchanges_traced=traced,
+    )
+    assert len(plot_notes) == 1  # the exchange figure only: the other two have samples
+    assert plot_notes[0].startswith(note)
+
+
+@pytest.mark.parametrize(
     ("available", "expected"),
     [
         pytest.param(0, [], id="none"),
