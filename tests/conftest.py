@@ -10,6 +10,7 @@ from typing import Any
 import pytest
 
 from cas_async import Layer, MemoryTransport, Robot, Transport
+from cas_async.scenario import plots
 from tests.stacks import STACK_MESSAGES
 
 
@@ -46,8 +47,6 @@ async def settle(rounds: int = 20) -> None:
 @pytest.fixture
 def plot_notes(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     """The texts of the notes the figures draw instead of an empty panel, in order."""
-    from cas_async.scenario import plots  # imports matplotlib only when plotting
-
     notes: list[str] = []
     draw = plots._note
 

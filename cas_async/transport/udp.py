@@ -345,7 +345,10 @@ class UdpTransport(Transport):
         """
         if self._capped_buffer_logged:
             return
-        granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        try:
+            granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        except OSError:  # cannot tell: say nothing rather than fail a working socket
+            return
         if granted >= self.receive_buffer:
             return
         self._capped_buffer_logged = True
