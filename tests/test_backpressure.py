@@ -208,16 +208,19 @@ def test_layers_flooding_each_other_do_not_deadlock(pace: float, peers: tuple[in
     assert end <= work * len(peers) + 1.0 + 1e-9
 
 
+class Asked(Layer):
+    """A producer that floods its consumer past the queue limit, and answers requests."""
+
+    async def inner_process(self) -> None:
+        if self.counters.sent_internal == 0:
+            for k in range(20):  # twice the limit: this layer then waits for room
+                self.send_down(Note(str(k), []))
+
+    async def get_intra_msg_reply(self, msg: Message) -> Message | None:
+        return Answer(1, 0)
+
+
 def test_a_consumer_may_ask_its_producer_while_the_producer_waits_for_room() -> None:
-    class Asked(Layer):
-        async def inner_process(self) -> None:
-            if self.counters.sent_internal == 0:
-                for k in range(20):  # twice the limit: this layer then waits for room
-                    self.send_down(Note(str(k), []))
-
-        async def get_intra_msg_reply(self, msg: Message) -> Message | None:
-            return Answer(1, 0)
-
     class Asking(Layer):
         def __init__(self) -> None:
             self.got: list[str] = []
@@ -273,15 +276,6 @@ class Helper(Layer):
     ],
 )
 def test_a_consumer_may_ask_its_producer_and_another_layer_at_once(producer_first: bool) -> None:
-    class Asked(Layer):
-        async def inner_process(self) -> None:
-            if self.counters.sent_internal == 0:
-                for k in range(20):  # twice the limit: this layer then waits for room
-                    self.send_down(Note(str(k), []))
-
-        async def get_intra_msg_reply(self, msg: Message) -> Message | None:
-            return Answer(1, 0)
-
     class Asking(Layer):
         def __init__(self) -> None:
             self.got: list[str] = []

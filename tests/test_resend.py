@@ -8,7 +8,7 @@ duplicate. Only an external message this very layer sent may be resent.
 from __future__ import annotations
 
 from collections.abc import Callable, Coroutine
-from typing import Any, TypeVar
+from typing import Any, Literal, TypeVar
 
 import pytest
 
@@ -176,15 +176,27 @@ def test_a_resent_answered_negotiation_gets_the_same_reply_again() -> None:
     assert robots[0].dropped == {"duplicate": 1}
 
 
-def test_a_resent_negotiation_whose_reply_was_lost_gets_the_kept_reply() -> None:
-    """The retry a layer makes from a timer: the receiver answers without handling it again."""
+def _negotiation_resent_after_a_loss(
+    lossy_side: Literal["sender", "receiver"], value: int
+) -> tuple[list[Message], int, list[Robot]]:
+    """Sends a negotiation that ``lossy_side``'s transport loses, then resends it once.
+
+    A lossy sender loses the first request; a lossy receiver loses the first reply.
+
+    Returns the sender's external messages, how many the receiver handled, and the robots.
+    """
 
     async def main(clock: VirtualClock) -> tuple[list[Message], int, list[Robot]]:
         memory = MemoryTransport()
         lossy = FaultyTransport(memory, Faults(loss=1.0), clock=clock)
-        sender, receiver, robots = pair(memory, clock, receiver_transport=lossy)
+        sender, receiver, robots = pair(
+            memory,
+            clock,
+            sender_transport=lossy if lossy_side == "sender" else None,
+            receiver_transport=lossy if lossy_side == "receiver" else None,
+        )
         async with Swarm(robots):
-            query = Query(4, msg_type=MsgType.NEGOTIATION)
+            query = Query(value, msg_type=MsgType.NEGOTIATION)
             sender.send(2, query)
             await clock.sleep(1.0)
             lossy.faults = Faults()
@@ -192,7 +204,12 @@ def test_a_resent_negotiation_whose_reply_was_lost_gets_the_kept_reply() -> None
             await clock.sleep(1.0)
         return sender.external, len(receiver.external), robots
 
-    answers, handled, robots = on_virtual_time(main)
+    return on_virtual_time(main)
+
+
+def test_a_resent_negotiation_whose_reply_was_lost_gets_the_kept_reply() -> None:
+    """The retry a layer makes from a timer: the receiver answers without handling it again."""
+    answers, handled, robots = _negotiation_resent_after_a_loss("receiver", 4)
     assert [(type(m), m.value) for m in answers] == [(Answer, 8)]  # type: ignore[attr-defined]
     assert handled == 1
     assert robots[1].counters()["replies_resent"] == 1
@@ -202,21 +219,7 @@ def test_a_resent_negotiation_whose_reply_was_lost_gets_the_kept_reply() -> None
 
 def test_a_resent_unanswered_negotiation_is_answered_once() -> None:
     """The first copy was lost: the receiver handles the resent one and answers it."""
-
-    async def main(clock: VirtualClock) -> tuple[list[Message], int, list[Robot]]:
-        memory = MemoryTransport()
-        lossy = FaultyTransport(memory, Faults(loss=1.0), clock=clock)
-        sender, receiver, robots = pair(memory, clock, sender_transport=lossy)
-        async with Swarm(robots):
-            query = Query(5, msg_type=MsgType.NEGOTIATION)
-            sender.send(2, query)
-            await clock.sleep(1.0)
-            lossy.faults = Faults()
-            sender.resend(2, query)
-            await clock.sleep(1.0)
-        return sender.external, len(receiver.external), robots
-
-    answers, handled, robots = on_virtual_time(main)
+    answers, handled, robots = _negotiation_resent_after_a_loss("sender", 5)
     assert handled == 1
     assert [(type(m), m.value) for m in answers] == [(Answer, 10)]  # type: ignore[attr-defined]
     assert robots[1].counters()["replies_resent"] == 0
