@@ -25,7 +25,7 @@ from cas_async import (
     stack_fingerprint,
     uvloop_available,
 )
-from cas_async.message import specs_for
+from cas_async._message import specs_for
 
 from ._table import print_aligned
 

@@ -18,7 +18,7 @@ import time
 import msgpack
 
 from cas_async import Codec, stack_fingerprint
-from cas_async.message import specs_for
+from cas_async._message import specs_for
 
 from ._common import MESSAGES, Bench, main, raw_sample, sample
 

@@ -42,7 +42,7 @@ from cas_async import (
     loop_factory,
     uvloop_available,
 )
-from cas_async.transport.fd_limit import ensure_descriptors
+from cas_async.transport._fd_limit import ensure_descriptors
 
 from ._common import LOOPBACK
 from ._table import print_aligned

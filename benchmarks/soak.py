@@ -49,7 +49,7 @@ from cas_async import (
     message,
     uvloop_available,
 )
-from cas_async.transport.fd_limit import ensure_descriptors
+from cas_async.transport._fd_limit import ensure_descriptors
 
 from ._common import LOOPBACK, pin_malloc
 

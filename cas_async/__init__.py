@@ -5,11 +5,10 @@ layers inside the robot, and to the same-level layer of other robots. See the
 README for the thesis-to-API map.
 """
 
-from ._types import Address, Level, RobotId
-from .clock import Clock, ScaledClock, VirtualClock
-from .codec import DEFAULT_MAX_DATAGRAM, Codec
-from .counters import LayerCounters
-from .errors import (
+from ._clock import Clock, ScaledClock, VirtualClock
+from ._codec import DEFAULT_MAX_DATAGRAM, Codec
+from ._counters import LayerCounters
+from ._errors import (
     CasError,
     ConfigurationError,
     DecodeError,
@@ -22,11 +21,17 @@ from .errors import (
     StackMismatchError,
     UnknownRobotError,
 )
-from .fingerprint import describe_fingerprint, stack_fingerprint
-from .layer import Layer
-from .message import Message, MessageSpec, MsgType, message, spec_of
-from .robot import Robot, RobotState
-from .runner import loop_factory, run, uvloop_available
+from ._fingerprint import describe_fingerprint, stack_fingerprint
+from ._layer import Layer
+from ._message import Message, MessageSpec, MsgType, message, spec_of
+from ._robot import Robot, RobotState
+from ._runner import loop_factory, run, uvloop_available
+from ._supervision import RestartPolicy
+from ._swarm import Swarm
+from ._swarm_key import KeyFileWarning, SwarmKey
+from ._types import Address, Level, RobotId
+from ._virtual_loop import VirtualTimeLoop
+from ._wire_codec import PassThrough, WireCodec
 from .sim import (
     ConstantSpeed,
     Decelerating,
@@ -49,9 +54,6 @@ from .sim import (
     closing_time,
     normalize_angle,
 )
-from .supervision import RestartPolicy
-from .swarm import Swarm
-from .swarm_key import KeyFileWarning, SwarmKey
 from .transport import (
     AuthenticatedTransport,
     DatagramSink,
@@ -65,8 +67,6 @@ from .transport import (
     UdpDirectory,
     UdpTransport,
 )
-from .virtual_loop import VirtualTimeLoop
-from .wire_codec import PassThrough, WireCodec
 
 __version__ = "0.1.0"
 

@@ -1,8 +1,8 @@
-"""``python -m cas_async``: see :mod:`cas_async.cli`."""
+"""``python -m cas_async``: see :mod:`cas_async._cli`."""
 
 import sys
 
-from .cli import main
+from ._cli import main
 
 __all__: list[str] = []
 

@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 
 from cas_async import Layer, MemoryTransport, Robot, Transport
-from cas_async.scenario import plots
+from cas_async.scenario import _plots as plots
 from tests.stacks import STACK_MESSAGES
 
 

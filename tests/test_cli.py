@@ -384,7 +384,7 @@ def test_result_files_get_the_usual_permissions(virtual_run: tuple[Finished, Pat
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 def test_signals_while_writing_are_deferred() -> None:
-    from cas_async.cli import _signals_deferred
+    from cas_async._cli import _signals_deferred
 
     with _signals_deferred() as received:
         os.kill(os.getpid(), signal.SIGINT)

@@ -25,7 +25,7 @@ from cas_async import (
     spec_of,
     stack_fingerprint,
 )
-from cas_async.message import specs_for
+from cas_async._message import specs_for
 
 
 class CodecColor(IntEnum):

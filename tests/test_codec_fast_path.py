@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 
 from cas_async import Codec, DecodeError, Message, message
 from cas_async import stack_fingerprint as fingerprint_of
-from cas_async.codegen import compiled
-from cas_async.message import spec_of, specs_for
+from cas_async._codegen import compiled
+from cas_async._message import spec_of, specs_for
 
 from .test_codec_properties import PropAll, PropInner, PropSmall, ints64, same, wire_values
 

@@ -15,7 +15,7 @@ from hypothesis.extra import numpy as hnp
 
 from cas_async import Codec, DecodeError, Message, MsgType, StackMismatchError, message, spec_of
 from cas_async import stack_fingerprint as fingerprint_of
-from cas_async.message import HEADER_FIELDS, specs_for
+from cas_async._message import HEADER_FIELDS, specs_for
 
 
 class PropMode(IntEnum):

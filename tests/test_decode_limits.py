@@ -22,8 +22,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cas_async import Codec, DecodeError, Message, MsgType, message, spec_of, stack_fingerprint
-from cas_async.codec import MIN_DATAGRAM
-from cas_async.message import specs_for
+from cas_async._codec import MIN_DATAGRAM
+from cas_async._message import specs_for
 
 
 @message

@@ -19,7 +19,7 @@ from cas_async import (
     Swarm,
     VirtualClock,
 )
-from cas_async.dedup import DUPLICATE, FRESH, STALE, WINDOW, ReplyCache, SenderWindows
+from cas_async._dedup import DUPLICATE, FRESH, STALE, WINDOW, ReplyCache, SenderWindows
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
 
 # -- SenderWindows ---------------------------------------------------------------------

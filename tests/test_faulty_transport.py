@@ -10,12 +10,12 @@ from typing import Any, TypeVar
 import pytest
 
 import cas_async
-from cas_async.clock import Clock, ScaledClock, VirtualClock
-from cas_async.errors import RobotStateError, UnknownRobotError
-from cas_async.transport.base import Endpoint
-from cas_async.transport.faulty import Faults, FaultyTransport
-from cas_async.transport.memory import MemoryTransport
-from cas_async.transport.udp import UdpTransport
+from cas_async._clock import Clock, ScaledClock, VirtualClock
+from cas_async._errors import RobotStateError, UnknownRobotError
+from cas_async.transport._base import Endpoint
+from cas_async.transport._faulty import Faults, FaultyTransport
+from cas_async.transport._memory import MemoryTransport
+from cas_async.transport._udp import UdpTransport
 
 T = TypeVar("T")
 

@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from cas_async.errors import ConfigurationError
-from cas_async.transport import fd_limit
-from cas_async.transport.fd_limit import ensure_descriptors
+from cas_async._errors import ConfigurationError
+from cas_async.transport import _fd_limit as fd_limit
+from cas_async.transport._fd_limit import ensure_descriptors
 
 INFINITY = -1  # what the fake calls RLIM_INFINITY, as Linux does
 
@@ -182,11 +182,11 @@ def test_counts_the_descriptors_really_open() -> None:
 _CHILD = textwrap.dedent(
     """
     import json, resource, socket
-    from cas_async.errors import ConfigurationError
-    from cas_async.transport.fd_limit import ensure_descriptors
+    from cas_async._errors import ConfigurationError
+    from cas_async.transport._fd_limit import ensure_descriptors
 
     resource.setrlimit(resource.RLIMIT_NOFILE, (128, 600))
-    from cas_async.transport.fd_limit import _open_descriptors
+    from cas_async.transport._fd_limit import _open_descriptors
 
     out = {"first": ensure_descriptors(10), "open": _open_descriptors(128)}
     out["after_first"] = resource.getrlimit(resource.RLIMIT_NOFILE)

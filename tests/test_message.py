@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from cas_async import Message, MessageDefinitionError, MsgType, message, spec_of
-from cas_async.message import HEADER_FIELDS, lookup, registered, specs_for
+from cas_async._message import HEADER_FIELDS, lookup, registered, specs_for
 
 
 @message

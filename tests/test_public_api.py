@@ -1,4 +1,12 @@
-"""The public API is chosen on purpose: complete, sorted, and importable."""
+"""The public API is chosen on purpose: each audience has one face, the rest is internal.
+
+* ``cas_async``: what a layer author (and whoever assembles robots) uses;
+* ``cas_async.transport``: what a transport author implements and wraps;
+* ``cas_async.sim``: the simulation kit (Environment, kinematics, simulated middleware);
+* ``cas_async.scenario``: scenario files and runs, and the contract of an application.
+
+Every other module is internal, and says so with a leading underscore in its path.
+"""
 
 from __future__ import annotations
 
@@ -6,94 +14,72 @@ import importlib
 import pkgutil
 import types
 
+import pytest
+
 import cas_async
 import cas_async.scenario
+import cas_async.sim
+import cas_async.transport
+
+FACES: dict[str, types.ModuleType] = {
+    "cas_async": cas_async,
+    "cas_async.scenario": cas_async.scenario,
+    "cas_async.sim": cas_async.sim,
+    "cas_async.transport": cas_async.transport,
+}
+SUBPACKAGES = {"scenario", "sim", "transport"}
 
 
-def test_all_is_sorted_and_unique() -> None:
-    assert cas_async.__all__ == sorted(set(cas_async.__all__))
-    assert cas_async.scenario.__all__ == sorted(set(cas_async.scenario.__all__))
+def _modules() -> list[str]:
+    return [info.name for info in pkgutil.walk_packages(cas_async.__path__, "cas_async.")]
 
 
-def test_scenario_names_exist() -> None:
-    missing = [name for name in cas_async.scenario.__all__ if not hasattr(cas_async.scenario, name)]
-    assert not missing
-
-
-def test_all_names_exist() -> None:
-    missing = [name for name in cas_async.__all__ if not hasattr(cas_async, name)]
-    assert not missing
-
-
-def test_every_public_name_of_every_module_is_exported() -> None:
-    """A name a module exports is either re-exported at the top or deliberately internal."""
-    internal = {
-        # plumbing used between modules, not by applications
-        "HEADER_FIELDS",
-        "registered",
-        "lookup",
-        "specs_for",
-        "nested_to_wire",
-        "FieldType",
-        "field_type",
-        "nested_message_hook",
-        "DropLog",
-        "PrefixLogger",
-        "logger_for",
-        "Channel",
-        "DEFAULT_QUEUE_LIMIT",
-        "MAX_UDP_PAYLOAD",
-        # the stdlib loop's selector: loop_factory() is how applications get it
-        "PreciseEpollSelector",
-        "precise_selector_available",
-        "SocketWire",
-        "HEADER_LEN",
-        "Compiled",
-        "compiled",
-        "MIN_DATAGRAM",
-        "ReplyOutcome",
-        "Unconnected",
-        "drop_socket_error",
-        "SegmentTable",
-        "PendingRequests",
-        "Deadlines",
-        "undispatchable",
-        "Reception",
-        "SenderWindows",
-        "ReplyCache",
-        "WINDOW",
-        "FRESH",
-        "DUPLICATE",
-        "STALE",
-        "run_layer",
-        "run_loop",
-        "slide",
-        "Receiver",
-        "Requesting",
-        "ensure_descriptors",
-        "CellGrid",
-        "young_generation_for",
-        "owned",
-    }
-    exported = set(cas_async.__all__)
-    # Public subpackages with an API of their own (for application authors).
-    namespaces = {"cas_async.scenario": set(cas_async.scenario.__all__), "cas_async.cli": {"main"}}
-    for info in pkgutil.walk_packages(cas_async.__path__, "cas_async."):
-        module = importlib.import_module(info.name)
-        assert hasattr(module, "__all__"), f"{info.name} has no __all__"
-        public = exported.union(
-            *(names for prefix, names in namespaces.items() if info.name.startswith(prefix))
-        )
-        for name in module.__all__:
-            assert name in public or name in internal, (
-                f"{info.name}.{name} is neither exported nor internal"
-            )
-    public_top = {
+def test_every_module_is_a_face_or_marked_internal() -> None:
+    public = [
         name
-        for name, value in vars(cas_async).items()
+        for name in _modules()
+        if name not in FACES
+        and name != "cas_async.__main__"
+        and not any(part.startswith("_") for part in name.split(".")[1:])
+    ]
+    assert not public, f"modules neither a face nor internal (name them _module): {public}"
+
+
+def test_every_module_declares_its_names() -> None:
+    missing = [name for name in _modules() if not hasattr(importlib.import_module(name), "__all__")]
+    assert not missing
+
+
+@pytest.mark.parametrize("face", sorted(FACES))
+def test_a_face_lists_its_names_sorted_once(face: str) -> None:
+    names = FACES[face].__all__
+    assert names == sorted(set(names))
+
+
+@pytest.mark.parametrize("face", sorted(FACES))
+def test_a_face_exports_exactly_what_it_lists(face: str) -> None:
+    module = FACES[face]
+    missing = [name for name in module.__all__ if not hasattr(module, name)]
+    assert not missing
+    public = {
+        name
+        for name, value in vars(module).items()
         if not name.startswith("_") and not isinstance(value, types.ModuleType)
     }
-    assert public_top == exported
+    assert public == set(module.__all__)
+
+
+@pytest.mark.parametrize("face", sorted(FACES))
+def test_no_name_of_a_face_is_a_module(face: str) -> None:
+    """``cas_async.message`` is the decorator: no module of that name hides behind it."""
+    module = FACES[face]
+    modules = {
+        name
+        for name, value in vars(module).items()
+        if not name.startswith("_") and isinstance(value, types.ModuleType)
+    }
+    assert modules <= (SUBPACKAGES if face == "cas_async" else set())
+    assert not isinstance(cas_async.message, types.ModuleType)
 
 
 def test_the_package_is_typed() -> None:

@@ -29,7 +29,7 @@ from cas_async import (
     UnknownRobotError,
     VirtualClock,
 )
-from cas_async.transport.base import DatagramSink, Endpoint
+from cas_async.transport._base import DatagramSink, Endpoint
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
 
 T = TypeVar("T")

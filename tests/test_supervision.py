@@ -11,7 +11,7 @@ import pytest
 
 import cas_async
 from cas_async import Layer, LayerError, Message, RestartPolicy, Robot, ScaledClock, VirtualClock
-from cas_async.robot import RobotState
+from cas_async._robot import RobotState
 from tests.stacks import STACK_MESSAGES, Note
 
 

@@ -18,7 +18,7 @@ from cas_async import (
     UdpDirectory,
     UdpTransport,
 )
-from cas_async.transport.udp_socket import MAX_BACKLOG, SocketWire
+from cas_async.transport._udp_socket import MAX_BACKLOG, SocketWire
 from tests.stacks import STACK_MESSAGES, Note, Recorder, recorders
 
 LOOPS = pytest.mark.parametrize("use_uvloop", [False, True], ids=["stdlib", "uvloop"])

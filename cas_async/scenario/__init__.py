@@ -10,9 +10,9 @@
   the summary table and results.json, PNG figures, the live progress line.
 """
 
-from .app import Mission, SimulationApp, SimulationSetup
-from .config import ScenarioError, from_toml, setting
-from .loader import (
+from ._app import Mission, SimulationApp, SimulationSetup
+from ._config import ScenarioError, from_toml, setting
+from ._loader import (
     FaultsConfig,
     RunConfig,
     Scenario,
@@ -21,12 +21,12 @@ from .loader import (
     load_scenario,
     parse_override,
 )
-from .plots import write_plots
-from .progress import Progress
-from .report import results_dict, statistics, summary_table, write_results
-from .results import RunResult, RunStatus
-from .runner import check_key, run_scenario
-from .trace import Trace
+from ._plots import write_plots
+from ._progress import Progress
+from ._report import results_dict, statistics, summary_table, write_results
+from ._results import RunResult, RunStatus
+from ._runner import check_key, run_scenario
+from ._trace import Trace
 
 __all__ = [
     "FaultsConfig",

@@ -13,15 +13,15 @@ Nothing here knows any application: profiles describe physics, and the
 application decides when to change them.
 """
 
-from .environment import Environment
-from .errors import SimulationError
-from .items import ItemEvent, ItemEventKind, ItemId, ItemLedger
-from .kinematics import Motion, check_turn_rate
-from .middleware import Middleware, SimulatedMiddleware
-from .phases import Phase, check_phases
-from .pose import Pose, normalize_angle
-from .positions import Positions
-from .profiles import ConstantSpeed, Decelerating, PiecewiseSpeed, SpeedProfile, closing_time
+from ._environment import Environment
+from ._errors import SimulationError
+from ._items import ItemEvent, ItemEventKind, ItemId, ItemLedger
+from ._kinematics import Motion, check_turn_rate
+from ._middleware import Middleware, SimulatedMiddleware
+from ._phases import Phase, check_phases
+from ._pose import Pose, normalize_angle
+from ._positions import Positions
+from ._profiles import ConstantSpeed, Decelerating, PiecewiseSpeed, SpeedProfile, closing_time
 
 __all__ = [
     "ConstantSpeed",

@@ -1,13 +1,12 @@
 """Transports: one module per way of moving a robot's datagrams."""
 
-from .authenticated import AuthenticatedTransport
-from .base import DatagramSink, Endpoint, LossCounter, Transport
-from .faulty import Faults, FaultyTransport
-from .memory import MemoryTransport
-from .udp import MAX_UDP_PAYLOAD, InsecureBindWarning, UdpDirectory, UdpTransport
+from ._authenticated import AuthenticatedTransport
+from ._base import DatagramSink, Endpoint, LossCounter, Transport
+from ._faulty import Faults, FaultyTransport
+from ._memory import MemoryTransport
+from ._udp import MAX_UDP_PAYLOAD, InsecureBindWarning, UdpDirectory, UdpTransport
 
 __all__ = [
-    "MAX_UDP_PAYLOAD",
     "AuthenticatedTransport",
     "DatagramSink",
     "Endpoint",
@@ -15,6 +14,7 @@ __all__ = [
     "FaultyTransport",
     "InsecureBindWarning",
     "LossCounter",
+    "MAX_UDP_PAYLOAD",
     "MemoryTransport",
     "Transport",
     "UdpDirectory",

@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from cas_async.scenario.app import Mission, SimulationSetup
-from cas_async.scenario.config import ScenarioError, setting
+from cas_async.scenario._app import Mission, SimulationSetup
+from cas_async.scenario._config import ScenarioError, setting
 
 
 @dataclass(frozen=True)

@@ -11,14 +11,14 @@ import pytest
 
 import cas_async
 from cas_async import Layer, Message, Pose, Robot, message
-from cas_async.scenario.app import Mission, SimulationSetup
-from cas_async.scenario.config import ScenarioError, setting
-from cas_async.scenario.loader import FaultsConfig, load_scenario
-from cas_async.scenario.report import summary_table, write_results
-from cas_async.scenario.results import RunResult, RunStatus
-from cas_async.scenario.runner import run_scenario
-from cas_async.sim.environment import Environment
-from cas_async.transport.faulty import Faults
+from cas_async.scenario._app import Mission, SimulationSetup
+from cas_async.scenario._config import ScenarioError, setting
+from cas_async.scenario._loader import FaultsConfig, load_scenario
+from cas_async.scenario._report import summary_table, write_results
+from cas_async.scenario._results import RunResult, RunStatus
+from cas_async.scenario._runner import run_scenario
+from cas_async.sim._environment import Environment
+from cas_async.transport._faulty import Faults
 from tests.scenario.fake_app import FakeApp
 
 MINIMAL = """

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from cas_async.scenario.gc_policy import CEILING, PER_ROBOT, young_generation_for
+from cas_async.scenario._gc_policy import CEILING, PER_ROBOT, young_generation_for
 
 
 @pytest.fixture(autouse=True)

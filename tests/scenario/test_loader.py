@@ -8,8 +8,8 @@ from typing import Any
 
 import pytest
 
-from cas_async.scenario.config import ScenarioError
-from cas_async.scenario.loader import (
+from cas_async.scenario._config import ScenarioError
+from cas_async.scenario._loader import (
     RunConfig,
     Scenario,
     WorldConfig,

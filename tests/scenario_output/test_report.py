@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cas_async.scenario.report import results_dict, statistics, summary_table, write_results
-from cas_async.scenario.results import RunResult, RunStatus
+from cas_async.scenario._report import results_dict, statistics, summary_table, write_results
+from cas_async.scenario._results import RunResult, RunStatus
 
 
 def make_result(**changes: object) -> RunResult:

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cas_async.scenario.trace import Trace
-from cas_async.sim.errors import SimulationError
+from cas_async.scenario._trace import Trace
+from cas_async.sim._errors import SimulationError
 
 
 def xy_of(*points: tuple[float, float]) -> np.ndarray:

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cas_async.sim import ConstantSpeed, Decelerating, Environment, Motion, Pose, Positions
-from cas_async.sim.grid import CellGrid
-from cas_async.sim.segments import SegmentTable
+from cas_async.sim._grid import CellGrid
+from cas_async.sim._segments import SegmentTable
 
 GRID_FROM = 64  # the Environment uses its grid from this many robots on
 

@@ -1,0 +1,177 @@
+"""The requests a layer is waiting on: correlation, deadlines, late and stray replies.
+
+A request is a NEGOTIATION whose ``msg_id`` the reply carries back as ``corr_id``.
+Replies are matched here as they arrive, before the layer's inbox, so a layer
+blocked in one of its hooks on ``await request(...)`` still gets its answer. A
+reply must come from where the request went: the asked robot for an external
+request (same level), this robot's own layers for an internal one. Anything else
+that claims to answer a request (a stray, late or repeated reply) is dropped and
+counted; it never reaches a hook or a waiting caller.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import enum
+import math
+from collections.abc import Callable
+from typing import Final
+
+from ._deadlines import Deadlines
+from ._errors import RequestTimeout, RobotStateError
+from ._message import Message
+from ._types import RobotId
+
+__all__ = ["PendingRequests", "ReplyOutcome"]
+
+_MEMORY: Final = 256
+"""Timed-out and answered request ids remembered per layer, to drop late or repeated replies.
+
+Repeated external replies are already refused by the robot's duplicate check (by
+message id), so these only name what reaches a layer anyway; a small memory
+keeps a busy layer's footprint flat."""
+
+
+class ReplyOutcome(enum.Enum):
+    """What :meth:`PendingRequests.take` did with a message carrying a ``corr_id``."""
+
+    NOT_A_REPLY = 0
+    """No request of this layer waits for it: an ordinary message for the hooks."""
+    DELIVERED = 1
+    """It answered a waiting request."""
+    DROPPED = 2
+    """It claimed to answer a request but was late, repeated or from the wrong place."""
+
+
+class _Waiter:
+    __slots__ = ("external", "future", "peer", "request", "seconds")
+
+    def __init__(
+        self,
+        future: asyncio.Future[Message],
+        request: Message,
+        peer: RobotId,
+        external: bool,
+        seconds: float,
+    ) -> None:
+        self.future = future
+        self.request = request
+        self.peer = peer  # the robot that must answer (this robot, for internal ones)
+        self.external = external
+        self.seconds = seconds
+
+    @property
+    def what(self) -> str:
+        """``robot 3 to Query #12``, for errors and drops: formatted only for those."""
+        request = self.request
+        whom = f"robot {self.peer}" if self.external else f"layer {request.dst_layer}"
+        return f"{whom} to {type(request).__name__} #{request.msg_id}"
+
+
+def _remember(ids: dict[int, None], msg_id: int) -> None:
+    ids[msg_id] = None
+    if len(ids) > _MEMORY:
+        del ids[next(iter(ids))]  # insertion order: the oldest goes first
+
+
+class PendingRequests:
+    """One layer's outstanding requests.
+
+    Args:
+        owner: how errors name the layer, e.g. ``"robot 3 Top(L0)"``.
+        drop: counts (and logs) a refused reply: ``drop(reason, detail)``.
+    """
+
+    __slots__ = ("_answered", "_deadlines", "_drop", "_expired", "_owner", "_waiting")
+
+    def __init__(self, owner: str, drop: Callable[[str, str], None]) -> None:
+        self._owner = owner
+        self._drop = drop
+        self._waiting: dict[int, _Waiter] = {}
+        self._expired: dict[int, None] = {}  # insertion-ordered sets of recent ids
+        self._answered: dict[int, None] = {}
+        self._deadlines: Deadlines | None = None
+
+    def expect(
+        self,
+        msg: Message,
+        peer: RobotId,
+        external: bool,
+        seconds: float,
+        deadline: float,
+    ) -> asyncio.Future[Message]:
+        """Registers ``msg`` (already stamped) as waiting until loop time ``deadline``.
+
+        Args:
+            msg: the request.
+            peer: the robot whose answer is expected (this robot for internal ones).
+            external: whether the answer must come from another robot's same level.
+            seconds: the timeout, for the error message.
+            deadline: when it expires, in event-loop time (``inf``: never).
+        """
+        deadlines = self._deadlines
+        if deadlines is None:
+            loop = asyncio.get_running_loop()
+            deadlines = self._deadlines = Deadlines(loop, self._waiting, self._expire)
+        future: asyncio.Future[Message] = deadlines.loop.create_future()
+        self._waiting[msg.msg_id] = _Waiter(future, msg, peer, external, seconds)
+        if deadline != math.inf:  # an infinite timeout arms no timer
+            deadlines.add(msg.msg_id, deadline)
+        return future
+
+    def forget(self, msg_id: int) -> None:
+        """Stops waiting for ``msg_id`` (answered, timed out, cancelled or never sent)."""
+        self._waiting.pop(msg_id, None)
+
+    def take(self, reply: Message) -> ReplyOutcome:
+        """Hands ``reply`` to the request it answers, if any; see :class:`ReplyOutcome`."""
+        corr_id = reply.corr_id
+        waiter = self._waiting.get(corr_id)
+        if waiter is None:
+            if corr_id in self._expired:
+                self._drop("late_reply", f"{reply!r} arrived after its request timed out")
+            elif corr_id in self._answered:
+                self._drop("duplicate_reply", f"{reply!r} answers a request already answered")
+            else:
+                return ReplyOutcome.NOT_A_REPLY
+            return ReplyOutcome.DROPPED
+        external = reply.src_layer == reply.dst_layer
+        if reply.robot_id != waiter.peer or external != waiter.external:
+            self._drop(
+                "reply_from_wrong_place",
+                f"{reply!r} claims to be the reply from {waiter.what}",
+            )
+            return ReplyOutcome.DROPPED
+        if waiter.future.cancelled():  # the asker stopped waiting (the robot is stopping)
+            self._drop("late_reply", f"{reply!r} arrived after its request was cancelled")
+            return ReplyOutcome.DROPPED
+        if waiter.future.done():
+            self._drop("duplicate_reply", f"{reply!r} answers a request already answered")
+            return ReplyOutcome.DROPPED
+        waiter.future.set_result(reply)
+        _remember(self._answered, corr_id)
+        return ReplyOutcome.DELIVERED
+
+    def _expire(self, msg_id: int) -> None:
+        waiter = self._waiting.get(msg_id)
+        if waiter is None or waiter.future.done():
+            return
+        _remember(self._expired, msg_id)
+        waiter.future.set_exception(
+            RequestTimeout(
+                f"{self._owner}: no reply from {waiter.what} within {waiter.seconds:g} s"
+            )
+        )
+
+    def close(self) -> None:
+        """The robot stopped: disarms the timer and fails every request still waiting."""
+        if self._deadlines is not None:
+            self._deadlines.cancel()
+        for waiter in self._waiting.values():
+            if not waiter.future.done():
+                waiter.future.set_exception(
+                    RobotStateError(
+                        f"{self._owner}: stopped while waiting for the reply from {waiter.what}"
+                    )
+                )
+        self._waiting.clear()

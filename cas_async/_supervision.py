@@ -1,0 +1,103 @@
+"""What happens when a layer raises: the robot stops, or the layer is restarted.
+
+By default a failure is final: the failing layer's exception is logged with its
+traceback, the robot's other layers are cancelled at once (no simulated time
+passes), and ``robot.run()`` raises :class:`~cas_async._errors.LayerError` naming
+the robot and the layer, with the original exception as ``__cause__``.
+
+With a :class:`RestartPolicy` the failed layer runs again instead, as an Erlang
+supervisor would restart a worker: its ``on_restart(error)`` hook resets what
+the failure left half done, then ``inner_process()`` and the message loop start
+over. Messages already waiting for the layer are kept; the message being handled
+when it failed is not handled again. When failures come faster than the policy
+allows, the robot stops as without a policy.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from ._errors import LayerError
+from ._layer_loop import run_loop
+
+if TYPE_CHECKING:
+    from ._layer import Layer
+    from ._robot import Robot
+
+__all__ = ["RestartPolicy", "run_layer"]
+
+
+@dataclass(frozen=True, slots=True)
+class RestartPolicy:
+    """Restart a failed layer, up to ``max_restarts`` times within ``within`` simulated seconds.
+
+    Attributes:
+        max_restarts: restarts allowed inside any window of ``within`` seconds; one
+            more failure in that window stops the robot.
+        within: the window, in simulated seconds (``math.inf``: over the robot's life).
+    """
+
+    max_restarts: int = 3
+    within: float = 60.0
+
+    def __post_init__(self) -> None:
+        if type(self.max_restarts) is not int or self.max_restarts < 0:
+            raise ValueError(f"max_restarts must be an int >= 0, got {self.max_restarts!r}")
+        if not self.within > 0:
+            raise ValueError(f"within must be > 0 simulated seconds, got {self.within!r}")
+
+
+async def run_layer(robot: Robot, layer: Layer, policy: RestartPolicy | None) -> None:
+    """Runs ``layer``'s loop under ``policy`` until the robot cancels it.
+
+    Raises:
+        LayerError: the layer failed (and may not be restarted).
+    """
+    failures: deque[float] = deque()
+    while True:
+        try:
+            await run_loop(layer)
+            return
+        except asyncio.CancelledError as exc:
+            task = asyncio.current_task()
+            if task is not None and task.cancelling():
+                raise  # the robot is stopping (or a sibling failed)
+            # Nobody cancelled this task: an await inside the layer was cancelled (say,
+            # a driver's future). The layer is dead; the robot must not run on without it.
+            layer.log.error("failed: an await was cancelled from outside the robot")
+            raise LayerError(robot.robot_id, layer._level, type(layer).__name__, exc) from exc
+        except Exception as exc:
+            if not _may_restart(robot, policy, failures):
+                layer.log.error("failed, stopping the robot", exc_info=exc)
+                raise LayerError(robot.robot_id, layer._level, type(layer).__name__, exc) from exc
+            layer.log.error(
+                "failed, restarting (restart %d of %d allowed within %g s)",
+                len(failures),
+                policy.max_restarts,  # type: ignore[union-attr]
+                policy.within,  # type: ignore[union-attr]
+                exc_info=exc,
+            )
+            layer._counters.restarts += 1
+            try:
+                await layer.on_restart(exc)
+            except Exception as again:
+                layer.log.error("on_restart failed, stopping the robot", exc_info=again)
+                raise LayerError(
+                    robot.robot_id, layer._level, type(layer).__name__, again
+                ) from again
+
+
+def _may_restart(robot: Robot, policy: RestartPolicy | None, failures: deque[float]) -> bool:
+    """Records a failure now; whether the policy still allows a restart."""
+    if policy is None:
+        return False
+    now = robot.clock.now()
+    failures.append(now)
+    if policy.within != math.inf:
+        while failures and failures[0] <= now - policy.within:
+            failures.popleft()
+    return len(failures) <= policy.max_restarts

@@ -1,0 +1,96 @@
+"""The contract between the scenario runner and a simulated application.
+
+A scenario file names its application by import path (``app = "apps.fire_brigade"``):
+a module with a module-level ``app`` object that satisfies :class:`SimulationApp`.
+The runner owns everything generic (loading and validating the file, the clock,
+the transport, the Environment, progress, Ctrl-C, results and plots); the
+application owns its own configuration sections and builds the robots.
+
+Progress is measured through the Environment's item ledger: the application
+creates, hands over and retires items from its robotic layers, and the mission
+is complete when ``Mission.target`` items have been retired (delivered).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from .._clock import Clock
+from .._robot import Robot
+from .._supervision import RestartPolicy
+from ..sim._environment import Environment
+from ..transport._base import Transport
+
+__all__ = ["Mission", "SimulationApp", "SimulationSetup"]
+
+
+@dataclass(frozen=True, slots=True)
+class SimulationSetup:
+    """What the runner hands an application to build its robots with.
+
+    Attributes:
+        config: the application's configuration, an instance of ``app.config_type``.
+        world: ``(width, height)`` of the area, with its corner at ``(0, 0)``.
+        environment: the world every robot must be added to (with its start pose).
+        clock: the clock every robot must use.
+        transport: the transport every robot must use.
+        rng: the run's seeded random generator; use it (or seeds drawn from it)
+            for every random choice, so a seed reproduces a run.
+        restart: the restart policy for every robot (``Robot(restart=...)``), from
+            ``[run] restarts``; ``None``: a layer that raises fails the run.
+    """
+
+    config: Any
+    world: tuple[float, float]
+    environment: Environment
+    clock: Clock
+    transport: Transport
+    rng: np.random.Generator
+    restart: RestartPolicy | None = None
+
+
+@dataclass(slots=True)
+class Mission:
+    """The robots an application built, and what counts as done.
+
+    Attributes:
+        robots: every robot, each already added to the Environment.
+        target: items to retire for the mission to be complete.
+        groups: robot ids by label, in the order to show them (e.g. ``"Generator"``).
+        extra: returns application-specific figures for the results; called once,
+            at the end of the run.
+    """
+
+    robots: Sequence[Robot]
+    target: int
+    groups: dict[str, list[int]] = field(default_factory=dict)
+    extra: Callable[[], dict[str, float | int | str]] | None = None
+
+
+class SimulationApp(Protocol):
+    """An application the scenario runner can run (see the module docs).
+
+    Attributes:
+        name: shown in the summary, e.g. ``"Fire Brigade"``.
+        item_name: what its items are, singular, e.g. ``"bucket"``.
+        config_type: a frozen dataclass: the scenario file's keys other than
+            ``app``, ``run`` and ``world`` are validated into it.
+    """
+
+    name: str
+    item_name: str
+    config_type: type[Any]
+
+    def check(self, config: Any, world: tuple[float, float]) -> None:
+        """Checks what needs several keys at once (robots inside the world, …).
+
+        Raises:
+            ScenarioError: naming the key at fault.
+        """
+
+    def build(self, setup: SimulationSetup) -> Mission:
+        """Creates the robots, adds them to ``setup.environment``, returns the mission."""

@@ -1,0 +1,222 @@
+"""PNG figures of a run's :class:`~cas_async.scenario._trace.Trace`, like the thesis's Figs. 33-36.
+
+matplotlib is imported only inside :func:`write_plots`, so importing cas_async never
+pays for it (or needs it). Figures are drawn with ``matplotlib.figure.Figure`` on an
+Agg canvas, never through pyplot: no global state, no window, safe in any process.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Final
+
+import numpy as np
+import numpy.typing as npt
+
+from ._trace import Trace
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+__all__ = ["write_plots"]
+
+_DPI: Final = 100
+_PANELS: Final = 6
+_MARKERS: Final = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">")
+_MARGIN: Final = 0.03
+"""Fraction of the larger world side left around the world, so robots on its edge show."""
+
+
+def write_plots(
+    trace: Trace,
+    groups: dict[str, list[int]],
+    world: tuple[float, float],
+    out_dir: Path,
+    *,
+    title: str,
+    exchanges_traced: bool = True,
+) -> list[Path]:
+    """Writes the three figures of a run to ``out_dir``.
+
+    ``initial_positions.png``, ``snapshots_by_exchange.png`` and ``snapshots_by_time.png``:
+
+    * initial positions: the first regular sample, robot ids annotated.
+    * by exchange: six snapshots at exchange counts spread evenly from the first
+      to the last snapshot (fewer if fewer exist; a note if there are none).
+    * by time: six regular samples at times spread evenly from the first to the
+      last (a note if there are none).
+
+    Args:
+        trace: the run's positions.
+        groups: robot ids by label, in legend order; each group gets its own colour
+            and marker. Robots of the trace in no group are drawn as ``"other"``;
+            ids not in the trace are ignored.
+        world: ``(width, height)`` of the area, with its corner at ``(0, 0)``.
+        out_dir: where to write (created if missing).
+        title: shown above every figure (e.g. the app's name and the seed).
+        exchanges_traced: whether the run recorded exchange snapshots (``[run]
+            trace_exchanges``); when not, the exchange figure says so rather than
+            "no exchanges recorded".
+
+    Returns:
+        The paths written, in the order above.
+    """
+    from matplotlib.figure import Figure
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = _group_rows(trace, groups)
+    paths = []
+
+    figure = Figure(figsize=(8, 7), dpi=_DPI)
+    figure.suptitle(f"{title}: initial positions")
+    # fixed margins rather than a layout engine: measuring every tick label for
+    # constrained layout costs more than drawing the figure
+    figure.subplots_adjust(left=0.08, right=0.8, bottom=0.08, top=0.9)
+    axes = figure.add_subplot()
+    if len(trace.times):
+        _scatter(axes, trace.positions[0], rows, world, size=22)
+        for robot_id, (x, y) in zip(trace.ids, trace.positions[0].tolist(), strict=True):
+            axes.annotate(
+                str(robot_id), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6
+            )
+        if rows:
+            axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+        axes.set_title(f"t = {trace.times[0]:.1f} s", fontsize=10)
+    else:
+        _note(axes, "no samples recorded")
+    paths.append(_save(figure, out_dir / "initial_positions.png"))
+
+    counts = trace.exchange_counts
+    picks = _spread(len(counts), _PANELS)
+    panels = [
+        (
+            f"after exchange {counts[k]} (t = {trace.exchange_times[k]:.1f} s)",
+            trace.exchange_positions[k],
+        )
+        for k in picks
+    ]
+    figure = _panels(f"{title}: snapshots by exchange", panels, rows, world)
+    if not panels:
+        _note(
+            figure.add_subplot(),
+            "no exchanges recorded"
+            if exchanges_traced
+            else "exchange snapshots switched off\n([run] trace_exchanges = false)",
+        )
+    paths.append(_save(figure, out_dir / "snapshots_by_exchange.png"))
+
+    times = trace.times
+    picks = _at_times(times, _PANELS)
+    panels = [(f"t = {times[k]:.1f} s", trace.positions[k]) for k in picks]
+    figure = _panels(f"{title}: snapshots by time", panels, rows, world)
+    if not panels:
+        _note(figure.add_subplot(), "no samples recorded")
+    paths.append(_save(figure, out_dir / "snapshots_by_time.png"))
+    return paths
+
+
+def _group_rows(trace: Trace, groups: dict[str, list[int]]) -> list[tuple[str, list[int]]]:
+    """``(label, trace rows)`` per non-empty group, robots in no group last as ``"other"``."""
+    row_of = {robot_id: k for k, robot_id in enumerate(trace.ids)}
+    placed: set[int] = set()
+    rows = []
+    for label, ids in groups.items():
+        members = [row_of[i] for i in ids if i in row_of and i not in placed]
+        placed.update(i for i in ids if i in row_of)
+        if members:
+            rows.append((label, members))
+    others = [k for robot_id, k in row_of.items() if robot_id not in placed]
+    if others:
+        rows.append(("other", others))
+    return rows
+
+
+def _spread(available: int, wanted: int) -> list[int]:
+    """Up to ``wanted`` indices of ``range(available)``, evenly spread, first and last included."""
+    if available <= wanted:
+        return list(range(available))
+    return sorted({round(k) for k in np.linspace(0, available - 1, wanted).tolist()})
+
+
+def _at_times(times: npt.NDArray[np.float64], wanted: int) -> list[int]:
+    """Indices of the last sample at or before each of ``wanted`` evenly spread instants."""
+    if not len(times):
+        return []
+    instants = np.linspace(times[0], times[-1], wanted)
+    indices = np.searchsorted(times, instants, side="right") - 1
+    return sorted({max(0, int(k)) for k in indices.tolist()})
+
+
+def _panels(
+    title: str,
+    panels: Sequence[tuple[str, npt.NDArray[np.float64]]],
+    rows: list[tuple[str, list[int]]],
+    world: tuple[float, float],
+) -> Figure:
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(15, 9.5), dpi=_DPI)
+    figure.suptitle(title)
+    if not panels:
+        return figure
+    figure.subplots_adjust(left=0.05, right=0.98, bottom=0.12, top=0.92, wspace=0.2, hspace=0.28)
+    # one world in every panel: shared axes label only the outer ones, which also halves
+    # the tick labels to lay out
+    grid = figure.subplots(2, 3, squeeze=False, sharex=True, sharey=True)
+    for axes, (panel_title, xy) in zip(grid.flat, panels, strict=False):
+        _scatter(axes, xy, rows, world, size=10)
+        axes.set_title(panel_title, fontsize=10)
+        axes.label_outer()
+    for k in range(len(panels), _PANELS):
+        grid.flat[k].set_axis_off()
+        if k >= 3:  # the panel above is now its column's lowest: give it the x labels
+            grid.flat[k - 3].tick_params(labelbottom=True)
+            grid.flat[k - 3].set_xlabel("x")
+    if rows:
+        handles, labels = grid.flat[0].get_legend_handles_labels()
+        figure.legend(handles, labels, loc="lower center", ncols=min(len(rows), 6))
+    return figure
+
+
+def _scatter(
+    axes: Axes,
+    xy: npt.NDArray[np.float64],
+    rows: list[tuple[str, list[int]]],
+    world: tuple[float, float],
+    *,
+    size: float,
+) -> None:
+    for k, (label, members) in enumerate(rows):
+        points = xy[members]
+        axes.scatter(
+            points[:, 0],
+            points[:, 1],
+            s=size,
+            marker=_MARKERS[k % len(_MARKERS)],
+            color=f"C{k % 10}",
+            label=label,
+        )
+    width, height = world
+    margin = _MARGIN * max(width, height)
+    axes.set_xlim(-margin, width + margin)
+    axes.set_ylim(-margin, height + margin)
+    axes.set_aspect("equal")
+    axes.grid(True, linewidth=0.5, alpha=0.5)
+    axes.set_xlabel("x")
+    axes.set_ylabel("y")
+
+
+def _note(axes: Axes, text: str) -> None:
+    axes.set_axis_off()
+    axes.text(0.5, 0.5, text, ha="center", va="center", fontsize=14, transform=axes.transAxes)
+
+
+def _save(figure: Figure, path: Path) -> Path:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(figure)
+    figure.savefig(path, dpi=_DPI, format="png")
+    return path

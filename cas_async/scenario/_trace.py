@@ -1,0 +1,247 @@
+"""Where a fixed set of robots were over simulated time: the data behind the plots.
+
+A :class:`Trace` holds two streams for the same robots, in the same row order:
+
+* regular samples, taken every so often by the runner (:meth:`Trace.sample`);
+* exchange snapshots, taken right after an item changed hands (:meth:`Trace.exchange`).
+
+Recording only appends to Python lists (a run may record tens of thousands of
+samples for a few hundred robots); the numpy views are built when first asked
+for and kept until the next record.
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_right
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..sim._errors import SimulationError
+from ._report import _atomic_text_file
+
+__all__ = ["Trace"]
+
+_FloatArray = npt.NDArray[np.float64]
+_IntArray = npt.NDArray[np.int64]
+
+
+class Trace:
+    """Positions of a fixed set of robots, sampled over simulated time.
+
+    Every recorded array has shape ``(n, 2)`` with row ``k`` belonging to ``ids[k]``.
+    It is copied on record (the caller's array may be a read-only shared cache),
+    and every array the trace hands out is read-only.
+
+    Args:
+        ids: the robots, in the row order of every array recorded; no duplicates.
+
+    Raises:
+        SimulationError: an id appears twice.
+    """
+
+    __slots__ = (
+        "_cache",
+        "_ex_counts",
+        "_ex_times",
+        "_ex_xy",
+        "_ids",
+        "_times",
+        "_xy",
+    )
+
+    def __init__(self, ids: Sequence[int] | _IntArray) -> None:
+        self._ids = tuple(int(robot_id) for robot_id in ids)
+        twice = sorted(robot_id for robot_id, n in Counter(self._ids).items() if n > 1)
+        if twice:
+            raise SimulationError(f"Trace: robot ids must be unique, got {twice} more than once")
+        self._times: list[float] = []
+        self._xy: list[_FloatArray] = []
+        self._ex_counts: list[int] = []
+        self._ex_times: list[float] = []
+        self._ex_xy: list[_FloatArray] = []
+        # numpy views of the lists above, built on demand; emptied by every record
+        self._cache: dict[str, npt.NDArray[Any]] = {}
+
+    def __repr__(self) -> str:
+        return (
+            f"<Trace {len(self._ids)} robots, {len(self._times)} samples,"
+            f" {len(self._ex_times)} exchange snapshots>"
+        )
+
+    # -- recording ---------------------------------------------------------------
+
+    def sample(self, t: float, xy: _FloatArray) -> None:
+        """Records a regular sample at simulated instant ``t``.
+
+        Raises:
+            SimulationError: ``t`` is not finite or earlier than the previous sample,
+                or ``xy`` is not of shape ``(n, 2)``.
+        """
+        t = self._check_time(t, self._times, "sample")
+        self._xy.append(self._copy(xy, f"sample at t = {t!r}"))
+        self._times.append(t)
+        self._cache.clear()
+
+    def exchange(self, t: float, count: int, xy: _FloatArray) -> None:
+        """Records a snapshot taken right after the ``count``-th exchange (1-based).
+
+        Snapshots need not cover every exchange, but their counts must increase.
+
+        Raises:
+            SimulationError: ``t`` is not finite or earlier than the previous snapshot,
+                ``count`` is below 1 or not above the previous one, or ``xy`` is not
+                of shape ``(n, 2)``.
+        """
+        t = self._check_time(t, self._ex_times, "exchange snapshot")
+        count = int(count)
+        if count < 1 or (self._ex_counts and count <= self._ex_counts[-1]):
+            previous = self._ex_counts[-1] if self._ex_counts else None
+            raise SimulationError(
+                f"Trace.exchange: count must be at least 1 and above the previous"
+                f" snapshot's ({previous}), got {count}"
+            )
+        self._ex_xy.append(self._copy(xy, f"exchange {count}"))
+        self._ex_counts.append(count)
+        self._ex_times.append(t)
+        self._cache.clear()
+
+    @staticmethod
+    def _check_time(t: float, times: list[float], what: str) -> float:
+        t = float(t)
+        if not math.isfinite(t):
+            raise SimulationError(f"Trace: {what} time must be finite, got {t!r}")
+        if times and t < times[-1]:
+            raise SimulationError(
+                f"Trace: {what} times must not decrease, got t = {t!r} after t = {times[-1]!r}"
+            )
+        return t
+
+    def _copy(self, xy: _FloatArray, what: str) -> _FloatArray:
+        copied = np.array(xy, dtype=np.float64, copy=True)
+        if copied.shape != (len(self._ids), 2):
+            raise SimulationError(
+                f"Trace: {what} has shape {copied.shape}, expected ({len(self._ids)}, 2)"
+                " (one row per robot id)"
+            )
+        copied.flags.writeable = False
+        return copied
+
+    # -- reading -----------------------------------------------------------------
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        """The robots, in row order."""
+        return self._ids
+
+    @property
+    def times(self) -> _FloatArray:
+        """Instants of the regular samples, shape ``(samples,)``."""
+        return self._array("times", self._times, np.float64)
+
+    @property
+    def positions(self) -> _FloatArray:
+        """Regular samples, shape ``(samples, n, 2)``."""
+        return self._stack("positions", self._xy)
+
+    @property
+    def exchange_counts(self) -> _IntArray:
+        """Exchange count of each snapshot, shape ``(snapshots,)``, increasing."""
+        return self._array("exchange_counts", self._ex_counts, np.int64)
+
+    @property
+    def exchange_times(self) -> _FloatArray:
+        """Instant of each exchange snapshot, shape ``(snapshots,)``."""
+        return self._array("exchange_times", self._ex_times, np.float64)
+
+    @property
+    def exchange_positions(self) -> _FloatArray:
+        """Exchange snapshots, shape ``(snapshots, n, 2)``."""
+        return self._stack("exchange_positions", self._ex_xy)
+
+    def at_time(self, t: float) -> _FloatArray:
+        """The last regular sample at or before ``t``, shape ``(n, 2)``.
+
+        Raises:
+            SimulationError: there is no sample at or before ``t``.
+        """
+        k = bisect_right(self._times, t) - 1
+        if k < 0:
+            first = f"the first is at t = {self._times[0]!r}" if self._times else "there are none"
+            raise SimulationError(f"Trace: no sample at or before t = {t!r}; {first}")
+        return self._xy[k]
+
+    def after_exchange(self, count: int) -> _FloatArray:
+        """The snapshot of exchange ``count``, or the last one before it, shape ``(n, 2)``.
+
+        Raises:
+            SimulationError: there is no snapshot at or before ``count``.
+        """
+        k = bisect_right(self._ex_counts, count) - 1
+        if k < 0:
+            first = (
+                f"the first is of exchange {self._ex_counts[0]}"
+                if self._ex_counts
+                else "there are none"
+            )
+            raise SimulationError(f"Trace: no snapshot at or before exchange {count}; {first}")
+        return self._ex_xy[k]
+
+    def _array(self, key: str, values: list[float] | list[int], dtype: type) -> npt.NDArray[Any]:
+        cached = self._cache.get(key)
+        if cached is None:
+            cached = np.array(values, dtype=dtype)
+            cached.flags.writeable = False
+            self._cache[key] = cached
+        return cached
+
+    def _stack(self, key: str, arrays: list[_FloatArray]) -> _FloatArray:
+        cached = self._cache.get(key)
+        if cached is None:
+            if arrays:
+                cached = np.stack(arrays)
+            else:
+                cached = np.empty((0, len(self._ids), 2), dtype=np.float64)
+            cached.flags.writeable = False
+            self._cache[key] = cached
+        return cached
+
+    # -- output ------------------------------------------------------------------
+
+    def write_csv(self, path: Path) -> None:
+        """Writes ``t,robot,x,y,exchange``: one row per robot per sample, in time order.
+
+        ``exchange`` is empty for regular samples and the count for exchange
+        snapshots; at equal times the regular sample comes first. Numbers are
+        written with ``repr``, so they read back exactly. The file is replaced
+        atomically: an interrupted write leaves the previous file (or none).
+        """
+        ids = [str(robot_id) for robot_id in self._ids]
+        with _atomic_text_file(Path(path)) as stream:
+            stream.write("t,robot,x,y,exchange\n")
+            for t, exchange, xy in self._in_time_order():
+                prefix = f"{t!r},"
+                stream.write(
+                    "".join(
+                        f"{prefix}{robot_id},{x!r},{y!r},{exchange}\n"
+                        for robot_id, (x, y) in zip(ids, xy.tolist(), strict=True)
+                    )
+                )
+
+    def _in_time_order(self) -> Iterator[tuple[float, str, _FloatArray]]:
+        """Merges the two streams (each already in time order); samples first on ties."""
+        i = j = 0
+        while i < len(self._times) or j < len(self._ex_times):
+            if j == len(self._ex_times) or (
+                i < len(self._times) and self._times[i] <= self._ex_times[j]
+            ):
+                yield self._times[i], "", self._xy[i]
+                i += 1
+            else:
+                yield self._ex_times[j], str(self._ex_counts[j]), self._ex_xy[j]
+                j += 1

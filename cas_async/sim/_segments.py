@@ -1,0 +1,160 @@
+"""The vectorised half of the Environment: every robot's motion in numpy arrays.
+
+One row per robot holds its current motion segment (absolute times, end points
+and the translation's speed phases), so the positions of all robots at an
+instant come from a handful of array operations, with no Python loop per robot.
+The per-robot :class:`~cas_async.sim._kinematics.Motion` stays the reference;
+this table is its fast path and must agree with it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+import numpy.typing as npt
+
+from ._kinematics import Motion
+from ._phases import _starts
+
+__all__ = ["SegmentTable"]
+
+# Columns of the row table.
+_T_TRANSLATE: Final = 0  # absolute instant the translation starts
+_T_END: Final = 1  # absolute instant the motion ends (-inf: standing)
+_X0: Final = 2
+_Y0: Final = 3
+_X1: Final = 4
+_Y1: Final = 5
+_LENGTH: Final = 6
+_COLUMNS: Final = 7
+
+# Fields of a phase: start (seconds into the translation), distance at start,
+# speed at start, acceleration. Unused phase slots start at +inf, never in force.
+_P_START: Final = 0
+_P_DIST: Final = 1
+_P_SPEED: Final = 2
+_P_ACCEL: Final = 3
+
+_INITIAL_CAPACITY: Final = 64
+
+
+class SegmentTable:
+    """Rows of motion segments, addressed by a dense index ``0 .. len-1``."""
+
+    def __init__(self) -> None:
+        self._n = 0
+        self._rows = np.zeros((_INITIAL_CAPACITY, _COLUMNS))
+        self._phases = self._empty_phases(_INITIAL_CAPACITY, 1)
+
+    def __len__(self) -> int:
+        return self._n
+
+    @staticmethod
+    def _empty_phases(rows: int, width: int) -> npt.NDArray[np.float64]:
+        phases = np.zeros((rows, width, 4))
+        phases[:, :, _P_START] = math.inf
+        return phases
+
+    def append(self, start_time: float, motion: Motion) -> None:
+        """Adds a row at index ``len(self)``."""
+        if self._n == self._rows.shape[0]:
+            grown = 2 * self._n
+            rows = np.zeros((grown, _COLUMNS))
+            rows[: self._n] = self._rows[: self._n]
+            phases = self._empty_phases(grown, self._phases.shape[1])
+            phases[: self._n] = self._phases[: self._n]
+            self._rows, self._phases = rows, phases
+        self._n += 1
+        self.set(self._n - 1, start_time, motion)
+
+    def set(self, index: int, start_time: float, motion: Motion) -> None:
+        """Replaces row ``index`` with ``motion`` started at absolute ``start_time``."""
+        start, end = motion.start, motion.end
+        t_end = start_time + motion.duration if motion.duration > 0 else -math.inf
+        self._rows[index] = (
+            start_time + motion.rotation_time,
+            t_end,
+            start.x,
+            start.y,
+            end.x,
+            end.y,
+            motion.length,
+        )
+        phases = [] if motion.profile is None else _starts(motion.profile.phases())
+        if len(phases) > self._phases.shape[1]:
+            wider = self._empty_phases(self._phases.shape[0], len(phases))
+            wider[:, : self._phases.shape[1]] = self._phases
+            self._phases = wider
+        row = self._phases[index]
+        row[:] = 0.0
+        row[:, _P_START] = math.inf
+        for k, (t0, d0, phase) in enumerate(phases):
+            row[k] = (t0, d0, phase.speed, phase.acceleration)
+
+    def delete(self, index: int) -> None:
+        """Removes row ``index``; later rows move up by one (order is kept)."""
+        n = self._n
+        self._rows[index : n - 1] = self._rows[index + 1 : n]
+        self._phases[index : n - 1] = self._phases[index + 1 : n]
+        self._n = n - 1
+
+    def positions(self, t: float) -> npt.NDArray[np.float64]:
+        """Every row's position at absolute instant ``t``, shape ``(len, 2)``.
+
+        A row is at its start point until its translation starts (so also before
+        its segment began: history is not kept), at its end point once the motion
+        is over, and in between at the closed-form distance of its profile.
+        """
+        return self._evaluate(t, self._rows[: self._n], None)
+
+    def positions_of(self, t: float, indices: npt.NDArray[np.intp]) -> npt.NDArray[np.float64]:
+        """The positions of rows ``indices`` at absolute instant ``t``, shape ``(len(indices), 2)``.
+
+        Row for row the same numbers as :meth:`positions` (the same arithmetic on
+        each row), in time proportional to ``len(indices)``.
+        """
+        return self._evaluate(t, self._rows[indices], indices)
+
+    def box(self, index: int) -> tuple[float, float, float, float]:
+        """Row ``index``'s segment ``(x0, y0, x1, y1)``: the row is on it at every instant."""
+        row = self._rows[index]
+        return (float(row[_X0]), float(row[_Y0]), float(row[_X1]), float(row[_Y1]))
+
+    def _evaluate(
+        self,
+        t: float,
+        rows: npt.NDArray[np.float64],
+        indices: npt.NDArray[np.intp] | None,
+    ) -> npt.NDArray[np.float64]:
+        """Positions of ``rows``, which are rows ``indices`` of the table (``None``: all)."""
+        xy = rows[:, [_X1, _Y1]].copy()
+        tau = t - rows[:, _T_TRANSLATE]
+        waiting = tau <= 0
+        xy[waiting] = rows[waiting][:, [_X0, _Y0]]
+        moving = np.flatnonzero(~waiting & (t < rows[:, _T_END]))
+        if moving.size:
+            table_rows = moving if indices is None else indices[moving]
+            self._place_moving(xy, moving, table_rows, tau[moving], rows[moving])
+        return xy
+
+    def _place_moving(
+        self,
+        xy: npt.NDArray[np.float64],
+        moving: npt.NDArray[np.intp],
+        table_rows: npt.NDArray[np.intp],
+        tau: npt.NDArray[np.float64],
+        rows: npt.NDArray[np.float64],
+    ) -> None:
+        phases = self._phases[table_rows]
+        # The phase in force is the last one that has started (the first starts at 0).
+        current = (phases[:, :, _P_START] <= tau[:, None]).sum(axis=1) - 1
+        phase = phases[np.arange(moving.size), current]
+        into = tau - phase[:, _P_START]
+        travelled = phase[:, _P_DIST] + into * (
+            phase[:, _P_SPEED] + 0.5 * phase[:, _P_ACCEL] * into
+        )
+        share = np.clip(travelled, 0.0, rows[:, _LENGTH]) / rows[:, _LENGTH]
+        xy[moving, 0] = rows[:, _X0] + share * (rows[:, _X1] - rows[:, _X0])
+        xy[moving, 1] = rows[:, _Y0] + share * (rows[:, _Y1] - rows[:, _Y0])

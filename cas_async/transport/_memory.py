@@ -1,0 +1,153 @@
+"""An in-process transport: bytes exactly as over UDP, or, if asked, the message objects.
+
+Every message is encoded by the sender and decoded by the receiver exactly as over
+UDP, so behaviour, limits and errors are the same; only the socket is missing.
+
+Delivery is never a re-entrant call into the receiver: what is sent to a robot
+waits in that robot's batch, and one ``loop.call_soon`` per batch hands the whole
+batch over on the loop's next pass, in send order. That keeps virtual-time runs
+deterministic, and costs one scheduled callback per receiver and pass instead of
+one per datagram (as a socket read drains what arrived).
+
+With ``pass_objects=True`` the transport carries message objects instead (see
+:mod:`cas_async._wire_codec`): no encoding, no decoding, and none of their checks.
+The endpoints below do not look at what they carry.
+
+A datagram in flight when its receiver closes is still handed to the receiver's
+sink, which decides what it means: a stopped robot counts it as ``"not_running"``.
+Nothing sent is lost without a count.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, final
+
+from .._codec import DEFAULT_MAX_DATAGRAM
+from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
+from .._types import Address, RobotId
+from .._wire_codec import PassThrough
+from ._base import DatagramSink, Endpoint, Transport
+
+if TYPE_CHECKING:
+    from .._codec import Codec
+    from .._wire_codec import WireCodec
+
+__all__ = ["MemoryTransport"]
+
+
+@final
+class MemoryEndpoint(Endpoint):
+    """A robot's attachment to a :class:`MemoryTransport`."""
+
+    __slots__ = (
+        "_batch",
+        "_closed",
+        "_loop",
+        "_network",
+        "_sink",
+        "max_datagram_size",
+        "robot_id",
+    )
+
+    def __init__(self, network: MemoryTransport, robot_id: RobotId, sink: DatagramSink) -> None:
+        self._network = network
+        self._sink = sink
+        self._loop = asyncio.get_running_loop()
+        self._closed = False
+        self._batch: list[tuple[bytes, RobotId]] | None = None  # sent, not yet delivered
+        self.robot_id = robot_id
+        self.max_datagram_size = network.max_datagram_size
+
+    @property
+    def address(self) -> Address:
+        return ("memory", self.robot_id)
+
+    def send(self, robot_id: RobotId, data: bytes) -> None:
+        if self._closed:
+            raise RobotStateError(f"robot {self.robot_id}: endpoint is closed")
+        target = self._network._endpoints.get(robot_id)
+        if target is None:
+            raise UnknownRobotError(f"no robot {robot_id} on this MemoryTransport")
+        batch = target._batch
+        if batch is None:
+            batch = target._batch = []
+            self._loop.call_soon(target._deliver)
+        batch.append((data, self.robot_id))
+
+    def _deliver(self) -> None:
+        # Taken first: what the sink sends while it handles this batch (a reply to
+        # this very robot) starts the next batch, delivered on a later pass.
+        batch, self._batch = self._batch or (), None
+        received = self._sink.datagram_received
+        for data, sender in batch:
+            # Also after close: the sink (a stopped robot) counts what arrives late.
+            try:
+                received(data, sender)
+            except Exception as exc:  # a broken sink must not lose the rest of the batch
+                self._loop.call_exception_handler(
+                    {"message": f"robot {self.robot_id}: sink failed", "exception": exc}
+                )
+
+    def peers(self) -> Iterable[RobotId]:
+        return [rid for rid in self._network._endpoints if rid != self.robot_id]
+
+    def knows(self, robot_id: RobotId) -> bool:
+        return robot_id in self._network._endpoints
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            if self._network._endpoints.get(self.robot_id) is self:
+                del self._network._endpoints[self.robot_id]
+
+
+@final
+class MemoryTransport(Transport):
+    """Connects robots of one process through memory (usable with virtual time).
+
+    Args:
+        max_datagram_size: largest datagram, as for a real network.
+        pass_objects: pass message objects to the receivers instead of encoding them
+            (see :mod:`cas_async._wire_codec`): faster, but without the size limit and
+            encodability checks of a network, so a message that would be refused
+            over UDP goes through. Robots on it must run identical stacks.
+    """
+
+    supports_virtual_time = True
+
+    def __init__(
+        self, max_datagram_size: int = DEFAULT_MAX_DATAGRAM, *, pass_objects: bool = False
+    ) -> None:
+        self.max_datagram_size = max_datagram_size
+        self.pass_objects = pass_objects
+        self._pass_through: PassThrough | None = None  # made for the first robot, shared
+        self._endpoints: dict[RobotId, MemoryEndpoint] = {}
+
+    async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
+        """Attaches a robot; raises ``ConfigurationError`` when its id is taken."""
+        if robot_id in self._endpoints:
+            raise ConfigurationError(
+                f"robot {robot_id} is already attached to this MemoryTransport"
+            )
+        endpoint = self._endpoints[robot_id] = MemoryEndpoint(self, robot_id, sink)
+        return endpoint
+
+    def wire_codec(self, robot_id: RobotId, codec: Codec) -> WireCodec:
+        """``codec`` (bytes), or with ``pass_objects`` the :class:`PassThrough` of this transport.
+
+        Raises:
+            ConfigurationError: with ``pass_objects``, the robot's stack differs from the
+                first robot's.
+        """
+        if not self.pass_objects:
+            return codec
+        if self._pass_through is None:
+            self._pass_through = PassThrough(codec, robot_id)
+            return self._pass_through
+        return self._pass_through.admit(robot_id, codec)
+
+    def __repr__(self) -> str:
+        kind = ", passing objects" if self.pass_objects else ""
+        return f"MemoryTransport({len(self._endpoints)} robots{kind})"
