@@ -17,15 +17,9 @@ import sys
 from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
 
-from cas_async import (
-    Message,
-    loop_factory,
-    message,
-    spec_of,
-    stack_fingerprint,
-    uvloop_available,
-)
+from cas_async import Message, loop_factory, message, spec_of, uvloop_available
 from cas_async._message import specs_for
+from cas_async.transport import stack_fingerprint
 
 from ._table import print_aligned
 

@@ -17,8 +17,8 @@ import time
 
 import msgpack
 
-from cas_async import Codec, stack_fingerprint
 from cas_async._message import specs_for
+from cas_async.transport import Codec, stack_fingerprint
 
 from ._common import MESSAGES, Bench, main, raw_sample, sample
 

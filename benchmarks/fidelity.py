@@ -78,8 +78,7 @@ def run_one(
 ) -> Run:
     """Runs the scenario once (in a worker process) and returns what it measured."""
     import cas_async  # imported in the worker: the parent only collects results
-    from cas_async.scenario._loader import load_scenario
-    from cas_async.scenario._runner import run_scenario
+    from cas_async.scenario import load_scenario, run_scenario
 
     overrides = [f"run.seed={seed}", f"run.transport={transport}"]
     if factor is None:

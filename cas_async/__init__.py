@@ -3,10 +3,14 @@
 Robots are stacks of layers that run concurrently, talk to their neighbouring
 layers inside the robot, and to the same-level layer of other robots. See the
 README for the thesis-to-API map.
+
+This package is the face for layer authors and for whoever assembles robots into
+a swarm. Transport authors find more in :mod:`cas_async.transport`, simulation
+authors in :mod:`cas_async.sim`, application and scenario authors in
+:mod:`cas_async.scenario`. Every module with a leading underscore is internal.
 """
 
 from ._clock import Clock, ScaledClock, VirtualClock
-from ._codec import DEFAULT_MAX_DATAGRAM, Codec
 from ._counters import LayerCounters
 from ._errors import (
     CasError,
@@ -18,50 +22,29 @@ from ._errors import (
     RequestTimeout,
     RobotStateError,
     RuleViolation,
+    SimulationError,
     StackMismatchError,
     UnknownRobotError,
 )
-from ._fingerprint import describe_fingerprint, stack_fingerprint
 from ._layer import Layer
 from ._message import Message, MessageSpec, MsgType, message, spec_of
-from ._robot import Robot, RobotState
+from ._middleware import Hands, Middleware
+from ._pose import Pose
+from ._positions import Positions
+from ._profiles import ConstantSpeed, Decelerating, PiecewiseSpeed, SpeedProfile
+from ._robot import Robot
+from ._robot_state import RobotState
 from ._runner import loop_factory, run, uvloop_available
 from ._supervision import RestartPolicy
 from ._swarm import Swarm
 from ._swarm_key import KeyFileWarning, SwarmKey
-from ._types import Address, Level, RobotId
+from ._types import Address, ItemId, Level, RobotId
 from ._virtual_loop import VirtualTimeLoop
-from ._wire_codec import PassThrough, WireCodec
-from .sim import (
-    ConstantSpeed,
-    Decelerating,
-    Environment,
-    ItemEvent,
-    ItemEventKind,
-    ItemId,
-    ItemLedger,
-    Middleware,
-    Motion,
-    Phase,
-    PiecewiseSpeed,
-    Pose,
-    Positions,
-    SimulatedMiddleware,
-    SimulationError,
-    SpeedProfile,
-    check_phases,
-    check_turn_rate,
-    closing_time,
-    normalize_angle,
-)
 from .transport import (
     AuthenticatedTransport,
-    DatagramSink,
-    Endpoint,
     Faults,
     FaultyTransport,
     InsecureBindWarning,
-    LossCounter,
     MemoryTransport,
     Transport,
     UdpDirectory,
@@ -75,38 +58,27 @@ __all__ = [
     "AuthenticatedTransport",
     "CasError",
     "Clock",
-    "Codec",
     "ConfigurationError",
     "ConstantSpeed",
-    "DEFAULT_MAX_DATAGRAM",
-    "DatagramSink",
     "Decelerating",
     "DecodeError",
     "EncodeError",
-    "Endpoint",
-    "Environment",
     "Faults",
     "FaultyTransport",
+    "Hands",
     "InsecureBindWarning",
-    "ItemEvent",
-    "ItemEventKind",
     "ItemId",
-    "ItemLedger",
     "KeyFileWarning",
     "Layer",
     "LayerCounters",
     "LayerError",
     "Level",
-    "LossCounter",
     "MemoryTransport",
     "Message",
     "MessageDefinitionError",
     "MessageSpec",
     "Middleware",
-    "Motion",
     "MsgType",
-    "PassThrough",
-    "Phase",
     "PiecewiseSpeed",
     "Pose",
     "Positions",
@@ -118,7 +90,6 @@ __all__ = [
     "RobotStateError",
     "RuleViolation",
     "ScaledClock",
-    "SimulatedMiddleware",
     "SimulationError",
     "SpeedProfile",
     "StackMismatchError",
@@ -130,16 +101,9 @@ __all__ = [
     "UnknownRobotError",
     "VirtualClock",
     "VirtualTimeLoop",
-    "WireCodec",
-    "check_phases",
-    "check_turn_rate",
-    "closing_time",
-    "describe_fingerprint",
     "loop_factory",
     "message",
-    "normalize_angle",
     "run",
     "spec_of",
-    "stack_fingerprint",
     "uvloop_available",
 ]

@@ -47,11 +47,6 @@ class Channel(Generic[T]):
     def __len__(self) -> int:
         return len(self._items)
 
-    @property
-    def full(self) -> bool:
-        """Whether ``limit`` messages or more are pending."""
-        return len(self._items) >= self.limit
-
     def put(self, item: T) -> bool:
         """Appends an item and wakes the reader; never drops. Returns whether it is full now."""
         items = self._items
@@ -88,9 +83,11 @@ class Channel(Generic[T]):
                 waiter.set_result(None)
         return True
 
-    def pop(self) -> T:
-        """The oldest item; the caller checks ``len()`` first (``IndexError`` if empty)."""
+    def pop(self) -> T | None:
+        """The oldest item, or ``None`` when nothing is pending."""
         items = self._items
+        if not items:
+            return None
         item = items.popleft()
         if self._room_waiters and len(items) <= self._low:
             self.release_room_waiters()

@@ -25,7 +25,7 @@ which only allocates for items it has actually read.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, Final
 
 import msgpack
@@ -36,7 +36,8 @@ from msgpack import unpackb as _unpackb
 
 from ._codegen import HEADER_LEN, compiled, undispatchable
 from ._errors import DecodeError, EncodeError
-from ._message import Message, MessageSpec, nested_to_wire, spec_of
+from ._fingerprint import stack_fingerprint
+from ._message import Message, MessageSpec, nested_to_wire, spec_of, specs_for
 from ._schema import ndarray_to_wire
 
 __all__ = ["DEFAULT_MAX_DATAGRAM", "MIN_DATAGRAM", "Codec"]
@@ -104,6 +105,9 @@ class Codec:
         max_size: largest datagram, in bytes, encoded or accepted.
     """
 
+    passes_objects = False
+    """Receivers get bytes, never the objects sent."""
+
     __slots__ = (
         "_by_class",
         "_by_id",
@@ -146,6 +150,21 @@ class Codec:
         }
         self._pack = msgpack.Packer(default=_encode_default, use_bin_type=True).pack
         self._fast_pack = msgspec.msgpack.Encoder().encode
+
+    @classmethod
+    def for_stack(
+        cls,
+        layers: int,
+        messages: Iterable[type[Message]] | None = None,
+        max_size: int = DEFAULT_MAX_DATAGRAM,
+    ) -> Codec:
+        """The codec of a robot with ``layers`` layers and these messages (default: all).
+
+        What a robot so made encodes, this codec encodes byte for byte: a test or a
+        transport author can craft datagrams a robot of that stack accepts.
+        """
+        specs = specs_for(messages)
+        return cls(specs, stack_fingerprint(layers, specs), max_size)
 
     @property
     def message_classes(self) -> frozenset[type[Message]]:

@@ -41,3 +41,14 @@ class LayerCounters:
     def as_dict(self) -> dict[str, int]:
         """The totals by name (the per-class splits are not included)."""
         return {name: getattr(self, name) for name in _TOTALS}
+
+    def add(self, other: LayerCounters) -> None:
+        """Adds ``other``'s totals to these (the per-class splits are not added)."""
+        for name in _TOTALS:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
+    def add_by_name(self, internal: dict[str, int], external: dict[str, int]) -> None:
+        """Adds the per-class splits to ``internal`` and ``external``, by class name."""
+        for split, into in ((self.internal_by_type, internal), (self.external_by_type, external)):
+            for cls, n in split.items():
+                into[cls.__name__] = into.get(cls.__name__, 0) + n

@@ -11,8 +11,8 @@ Hierarchy::
     ├── DecodeError               (also ValueError) bytes are not a valid datagram
     │   └── StackMismatchError    valid bytes from a robot with a different stack
     ├── RuleViolation             (also ValueError) a request broke a rule of the model
-    ├── SimulationError           (also ValueError) a simulation input is not valid
-    │                             (defined in cas_async.sim._errors)
+    ├── SimulationError           (also ValueError) a motion or simulation input is
+    │                             not valid (a non-finite pose, a bad speed profile)
     ├── RequestTimeout            (also TimeoutError) no reply in time
     └── LayerError                a layer raised; the original is ``__cause__``
 
@@ -34,6 +34,7 @@ __all__ = [
     "RequestTimeout",
     "RobotStateError",
     "RuleViolation",
+    "SimulationError",
     "StackMismatchError",
     "UnknownRobotError",
 ]
@@ -140,3 +141,17 @@ class LayerError(CasError):
         self.robot_id = robot_id
         self.level = level
         self.layer_name = layer_name
+
+
+class SimulationError(CasError, ValueError):
+    """A motion or simulation input is not valid.
+
+    Raised for a non-finite coordinate or heading, a negative or non-finite speed,
+    a minimum speed above the initial one, a non-positive turn rate, a negative
+    range, a move asked of an immobile robot, or an item operation the world
+    refuses (a hand-over out of reach, an item the robot does not hold). The
+    message names the value. The simulation kit otherwise reuses the package's
+    errors: an unknown robot id raises :class:`UnknownRobotError`, a duplicate
+    robot id :class:`ConfigurationError`, and a second move started while one is
+    under way :class:`RobotStateError`.
+    """

@@ -12,8 +12,15 @@ A layer is one level of a robot's stack (thesis §4.2). Users override the hooks
   every layer.
 
 The runtime owns the loop (one task per layer), forwarding of internal messages
-through intermediate layers, the header, and request/reply correlation. Rule
-violations are dropped, counted by reason and logged, never delivered.
+through intermediate layers, the header, and request/reply correlation (see
+:mod:`cas_async._layer_runtime`). Rule violations are dropped, counted by reason
+and logged, never delivered.
+
+The subclass's namespace is its author's: the runtime keeps all of its state in
+one attribute, ``_cas``, and every name starting with ``_cas`` is reserved.
+``robot``, ``robot_id``, ``level``, ``clock``, ``log`` and ``counters`` read the
+runtime but may be shadowed by an attribute of the same name; the runtime never
+reads them from the layer.
 
 Ownership: once sent, a message object belongs to the runtime, which writes its
 header. Sending the same object again (or answering a request with the request
@@ -22,55 +29,61 @@ object itself) sends a copy, so a message still travelling never changes under i
 
 from __future__ import annotations
 
-import asyncio
-import math
-from collections.abc import Iterable
-from typing import TYPE_CHECKING, ClassVar, Final
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, ClassVar, Generic, Self, TypeVar, cast, overload
 
-from ._channel import Channel
 from ._clock import Clock
 from ._counters import LayerCounters
-from ._errors import RobotStateError, RuleViolation, UnknownRobotError
-from ._layer_requests import Requesting, owned
+from ._errors import ConfigurationError
+from ._layer_runtime import Detached, LayerRuntime, RobotHandle
 from ._logs import PrefixLogger
-from ._message import Message, MsgType
-from ._requests import PendingRequests, ReplyOutcome
+from ._message import Message
 from ._types import Level, RobotId
 
-if TYPE_CHECKING:
-    from ._robot import Robot
+__all__ = ["Layer", "attach", "overrides"]
 
-__all__ = ["Layer"]
-
-_NEGOTIATION: Final = MsgType.NEGOTIATION
-_NOT_A_REPLY: Final = ReplyOutcome.NOT_A_REPLY
-_DELIVERED: Final = ReplyOutcome.DELIVERED
+T = TypeVar("T")
 
 
-class Layer(Requesting):
+class _FromRuntime(Generic[T]):
+    """A read-only view of the layer's runtime that a subclass may shadow with its own attribute.
+
+    A non-data descriptor: an instance attribute of the same name wins, so a layer
+    that sets ``self.log = []`` has its list, and the runtime is unaffected.
+    """
+
+    def __init__(self, read: Callable[[LayerRuntime], T], doc: str) -> None:
+        self._read = read
+        self.__doc__ = doc
+
+    @overload
+    def __get__(self, layer: None, owner: type[Any]) -> Self: ...
+    @overload
+    def __get__(self, layer: Layer, owner: type[Any]) -> T: ...
+    def __get__(self, layer: Layer | None, owner: type[Any]) -> T | Self:
+        if layer is None:
+            return self
+        return self._read(layer._cas)
+
+
+class Layer:
     """Base class of every layer. Subclasses override the hooks; see the module docs.
 
-    A layer instance belongs to one robot. The runtime state is set when the robot
+    A layer instance belongs to one robot. The runtime is attached when the robot
     is created, so subclasses may define ``__init__`` without calling ``super()``.
     """
 
     default_request_timeout: ClassVar[float] = 5.0
     """Simulated seconds a request waits for its reply when no timeout is given."""
 
-    # Timers of wake_after() still to go off; cancelled when the robot stops.
-    _wakes: set[asyncio.TimerHandle] | None = None
+    _cas: LayerRuntime
+    """The runtime of this layer (every name starting with ``_cas`` is reserved)."""
 
-    # Set by Robot when the stack is connected (thesis ConnectLayers).
-    _robot: Robot | None = None
-    _level: Level = -1
-    _above: Layer | None = None
-    _below: Layer | None = None
-    _live: bool = False
-
-    # Back-pressure: a layer whose inbox this one filled, and the layer this one
-    # is waiting on (to see a cycle of layers waiting on each other).
-    _congested: Layer | None = None
-    _waiting_on: Layer | None = None
+    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
+        layer = super().__new__(cls)
+        # A stand-in until a robot attaches the real runtime: every use explains.
+        layer._cas = cast(LayerRuntime, Detached(cls.__name__))
+        return layer
 
     # -- hooks ---------------------------------------------------------------------
 
@@ -94,7 +107,7 @@ class Layer(Requesting):
     async def on_restart(self, error: Exception) -> None:
         """Called before the layer runs again after ``error``, under a restart policy.
 
-        Reset here whatever the failure left half done; see :mod:`cas_async._supervision`.
+        Reset here whatever the failure left half done; see :class:`~cas_async.RestartPolicy`.
         """
 
     def termination_condition(self) -> bool:
@@ -105,71 +118,26 @@ class Layer(Requesting):
         """
         return False
 
-    def _has_termination_condition(self) -> bool:
-        return type(self).termination_condition is not Layer.termination_condition
-
     # -- identity --------------------------------------------------------------------
 
-    @property
-    def robot(self) -> Robot:
-        """The robot this layer belongs to."""
-        if self._robot is None:
-            raise RobotStateError(f"{type(self).__name__} is not part of a robot yet")
-        return self._robot
-
-    @property
-    def robot_id(self) -> RobotId:
-        """The id of this layer's robot."""
-        return self.robot.robot_id
-
-    @property
-    def level(self) -> Level:
-        """This layer's position in the stack: 0 is the top."""
-        self.robot  # noqa: B018 - raises a clear error when not attached
-        return self._level
-
-    @property
-    def clock(self) -> Clock:
-        """The robot's clock (simulated seconds)."""
-        return self.robot.clock
-
-    @property
-    def log(self) -> PrefixLogger:
-        """A logger whose records name the robot and this layer."""
-        self.robot  # noqa: B018 - raises a clear error when not attached
-        return self._log
-
-    @property
-    def counters(self) -> LayerCounters:
-        """This layer's message counters."""
-        self.robot  # noqa: B018 - raises a clear error when not attached
-        return self._counters
-
-    def _attach(self, robot: Robot, level: Level, log: PrefixLogger) -> None:
-        self._robot = robot
-        self._level = level
-        self._log = log
-        self._counters = LayerCounters()
-        self._inbox: Channel[Message] = Channel(robot.queue_limit)
-        self._requests = PendingRequests(log.prefix.rstrip(": "), robot._drop)
-
-    def _check_live(self) -> Robot:
-        robot = self._robot
-        if robot is None or not self._live:
-            state = (
-                "is not part of a robot"
-                if robot is None
-                else f"robot {robot.robot_id} is {robot.state}"
-            )
-            raise RobotStateError(f"{type(self).__name__} cannot send: {state}")
-        return robot
-
-    def _stamp(self, robot: Robot, msg: Message, dst: Level) -> None:
-        msg.msg_id = next(robot._ids)
-        msg.robot_id = robot.robot_id
-        msg.src_layer = self._level
-        msg.dst_layer = dst
-        msg.corr_id = 0
+    robot: _FromRuntime[RobotHandle] = _FromRuntime(
+        lambda cas: cas.robot, "The robot this layer belongs to (its id, clock and ``stop()``)."
+    )
+    robot_id: _FromRuntime[RobotId] = _FromRuntime(
+        lambda cas: cas.outbox.robot_id, "The id of this layer's robot."
+    )
+    level: _FromRuntime[Level] = _FromRuntime(
+        lambda cas: cas.level, "This layer's position in the stack: 0 is the top."
+    )
+    clock: _FromRuntime[Clock] = _FromRuntime(
+        lambda cas: cas.clock, "The robot's clock (simulated seconds)."
+    )
+    log: _FromRuntime[PrefixLogger] = _FromRuntime(
+        lambda cas: cas.log, "A logger whose records name the robot and this layer."
+    )
+    counters: _FromRuntime[LayerCounters] = _FromRuntime(
+        lambda cas: cas.counters, "This layer's message counters."
+    )
 
     # -- timers ----------------------------------------------------------------------
 
@@ -180,61 +148,17 @@ class Layer(Requesting):
         the layer keeps handling its messages in the meantime. Each call arms one
         wake-up; those still pending when the robot stops are cancelled.
         """
-        robot = self._check_live()
-        loop = asyncio.get_running_loop()
-        wakes = self._wakes
-        if wakes is None:
-            wakes = self._wakes = set()
-
-        handle: asyncio.TimerHandle | None = None
-
-        def wake() -> None:
-            nonlocal handle
-            wakes.discard(handle)
-            handle = None  # wake and its handle refer to each other: no cycle left to collect
-            self._inbox.nudge()
-
-        handle = loop.call_at(robot.clock.loop_deadline(seconds), wake)
-        wakes.add(handle)
-
-    def _cancel_wakes(self) -> None:
-        for handle in self._wakes or ():
-            handle.cancel()
-        self._wakes = None
+        self._cas.wake_after(seconds)
 
     # -- internal messages -----------------------------------------------------------
 
     def send_up(self, msg: Message) -> None:
         """Sends an internal message to the layer directly above."""
-        robot = self._check_live()
-        above = self._above
-        if above is None:
-            robot._violation("no_layer_above", self, msg)
-            return
-        msg = owned(msg)
-        self._stamp(robot, msg, self._level - 1)
-        counters = self._counters
-        counters.sent_internal += 1
-        by_type = counters.internal_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-        if above._inbox.put(msg):
-            self._congested = above
+        self._cas.send_up(msg)
 
     def send_down(self, msg: Message) -> None:
         """Sends an internal message to the layer directly below."""
-        robot = self._check_live()
-        below = self._below
-        if below is None:
-            robot._violation("no_layer_below", self, msg)
-            return
-        msg = owned(msg)
-        self._stamp(robot, msg, self._level + 1)
-        counters = self._counters
-        counters.sent_internal += 1
-        by_type = counters.internal_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-        if below._inbox.put(msg):
-            self._congested = below
+        self._cas.send_down(msg)
 
     def send_to_layer(self, level: Level, msg: Message) -> None:
         """Sends an internal message to any other layer of this robot.
@@ -242,49 +166,31 @@ class Layer(Requesting):
         A farther layer is reached through every intermediate layer, each of which
         forwards it at once (and counts it) without calling its hooks.
         """
-        robot = self._check_live()
-        if not self._level_ok(robot, level, msg):
-            return
-        msg = owned(msg)
-        self._stamp(robot, msg, level)
-        counters = self._counters
-        counters.sent_internal += 1
-        by_type = counters.internal_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-        self._carry(msg)
+        self._cas.send_to_layer(level, msg)
 
-    def _level_ok(self, robot: Robot, level: Level, msg: Message) -> bool:
-        """Whether ``level`` is another layer of this robot; if not, the drop is counted."""
-        if level == self._level:
-            robot._violation("to_self", self, msg)
-            return False
-        if not 0 <= level < len(robot.layers):
-            robot._violation("no_such_layer", self, msg)
-            return False
-        return True
+    async def request_down(self, msg: Message, *, timeout: float | None = None) -> Message:
+        """Sends a NEGOTIATION to the layer below and returns its automatic reply."""
+        cas = self._cas
+        return await cas.request_layer(cas.level + 1, msg, timeout)
 
-    def _carry(self, msg: Message) -> None:
-        """Takes a stamped internal message through the intermediate layers to its own.
+    async def request_up(self, msg: Message, *, timeout: float | None = None) -> Message:
+        """Sends a NEGOTIATION to the layer above and returns its automatic reply."""
+        cas = self._cas
+        return await cas.request_layer(cas.level - 1, msg, timeout)
 
-        Forwarding happens here, when the message is sent, rather than in each
-        intermediate layer's loop: a layer busy in a long hook (a Task layer waiting
-        for a motion) must not hold up messages passing between its neighbours.
+    async def request_layer(
+        self, level: Level, msg: Message, *, timeout: float | None = None
+    ) -> Message:
+        """Sends a NEGOTIATION to layer ``level`` of this robot; returns its reply.
+
+        The reply comes from that layer's ``get_intra_msg_reply``.
+
+        Raises:
+            RequestTimeout: no reply in time.
+            RuleViolation: ``level`` is this layer's or outside the stack (counted too).
+            RobotStateError: the robot stopped while waiting.
         """
-        dst = msg.dst_layer
-        layer = self
-        while True:
-            layer = layer._below if dst > layer._level else layer._above  # type: ignore[assignment]
-            if layer._level == dst:
-                break
-            layer._counters.forwarded += 1
-        if msg.corr_id:
-            outcome = layer._requests.take(msg)
-            if outcome is not _NOT_A_REPLY:
-                if outcome is _DELIVERED:
-                    layer._counters.received_internal += 1
-                return
-        if layer._inbox.put(msg):
-            self._congested = layer
+        return await self._cas.request_layer(level, msg, timeout)
 
     # -- external messages -----------------------------------------------------------
 
@@ -296,27 +202,7 @@ class Layer(Requesting):
             EncodeError: the message cannot be encoded.
             ConfigurationError: the robot has no transport.
         """
-        robot = self._robot
-        if robot is None or not self._live:
-            self._check_live()  # raises, naming the reason
-        assert robot is not None
-        if robot_id == robot.robot_id:
-            robot._violation("to_own_robot", self, msg)
-            return
-        # The header is stamped inline: this is the hot path of external traffic.
-        # No copy is needed when the message is encoded before send() returns; a
-        # robot that passes objects (wire_codec.py) sends a copy of one sent before.
-        if robot._passes_objects:
-            msg = owned(msg)
-        msg.msg_id = next(robot._ids)
-        msg.robot_id = robot.robot_id
-        msg.src_layer = msg.dst_layer = self._level
-        msg.corr_id = 0
-        robot._endpoint.send(robot_id, robot._codec.encode(msg))  # type: ignore[union-attr]
-        counters = self._counters
-        counters.sent_external += 1
-        by_type = counters.external_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
+        self._cas.send(robot_id, msg)
 
     def resend(self, robot_id: RobotId, msg: Message) -> None:
         """Sends an external message this layer already sent, again and unchanged.
@@ -331,19 +217,7 @@ class Layer(Requesting):
             RuleViolation: ``msg`` was not sent by this layer as an external message.
             UnknownRobotError: the transport knows no such robot.
         """
-        robot = self._check_live()
-        if (
-            not (msg.msg_id and msg.robot_id == robot.robot_id and msg.src_layer == msg.dst_layer)
-            or msg.src_layer != self._level
-        ):
-            raise RuleViolation(
-                f"{self._log.prefix}resend() needs a message this layer sent, got {msg!r}"
-            )
-        robot._endpoint.send(robot_id, robot._codec.encode(msg))  # type: ignore[union-attr]
-        counters = self._counters
-        counters.sent_external += 1
-        by_type = counters.external_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
+        self._cas.resend(robot_id, msg)
 
     def broadcast(self, msg: Message, robots: Iterable[RobotId] | None = None) -> None:
         """Sends one external message to the same level of several robots.
@@ -355,17 +229,7 @@ class Layer(Requesting):
             UnknownRobotError: after sending to the others, when some robots are unknown.
             ConfigurationError: the robot has no transport.
         """
-        robot = self._check_live()
-        if robot._passes_objects:
-            msg = owned(msg)  # receivers may still hold it
-        self._stamp(robot, msg, self._level)
-        sent, unknown = robot._broadcast(msg, robots)
-        counters = self._counters
-        counters.sent_external += sent
-        by_type = counters.external_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + sent
-        if unknown:
-            raise UnknownRobotError(f"robot {robot.robot_id}: no address for robots {unknown}")
+        self._cas.broadcast(msg, robots)
 
     def reply(self, request: Message, response: Message) -> None:
         """Answers a request: externally to its robot, or internally to its layer.
@@ -373,35 +237,39 @@ class Layer(Requesting):
         ``response.msg_type`` is kept (ACCEPT by default; set DENY to refuse). The
         request object itself may be sent back as the response.
         """
-        robot = self._robot
-        if robot is None or not self._live:
-            self._check_live()  # raises, naming the reason
-        assert robot is not None
-        asker, asked_id = request.robot_id, request.msg_id  # before any stamping
-        if request.src_layer == request.dst_layer and asker != robot.robot_id:
-            response = owned(response)  # a copy if sent before (or the request itself)
-            response.msg_id = next(robot._ids)  # stamped inline: the hot path of answers
-            response.robot_id = robot.robot_id
-            response.src_layer = response.dst_layer = self._level
-            response.corr_id = asked_id
-            robot._send_reply(asker, asked_id, response)
-            counters = self._counters
-            counters.sent_external += 1
-            by_type = counters.external_by_type
-            by_type[response.__class__] = by_type.get(response.__class__, 0) + 1
-        else:
-            self._reply_internal(robot, request, response)
+        self._cas.reply(request, response)
 
-    def _reply_internal(self, robot: Robot, request: Message, response: Message) -> None:
-        asker_level, asked_id = request.src_layer, request.msg_id  # before any stamping
-        response = owned(response)
-        self._stamp(robot, response, asker_level)
-        response.corr_id = asked_id
-        counters = self._counters
-        counters.sent_internal += 1
-        by_type = counters.internal_by_type
-        by_type[response.__class__] = by_type.get(response.__class__, 0) + 1
-        self._carry(response)
+    async def request(
+        self,
+        robot_id: RobotId,
+        msg: Message,
+        *,
+        timeout: float | None = None,
+        retries: int = 0,
+    ) -> Message:
+        """Sends a NEGOTIATION to robot ``robot_id`` and returns its reply.
+
+        The other robot answers from ``handle_msg`` with ``self.reply(msg, response)``.
+        With ``retries``, a request left unanswered for ``timeout`` is sent again,
+        as the same message: the other robot handles it once, and answers a
+        repetition with the reply it already sent (which may have been lost).
+
+        Args:
+            robot_id: the robot to ask (same level).
+            msg: the request; its ``msg_type`` becomes NEGOTIATION.
+            timeout: simulated seconds per attempt; ``default_request_timeout``
+                when ``None``; ``math.inf`` waits as long as it takes.
+            retries: how many times to send it again after a timeout; the whole
+                request gives up after ``(retries + 1) * timeout``.
+
+        Raises:
+            RequestTimeout: no reply to any attempt (the partner went silent);
+                ``attempts`` and ``peer`` say how often and whom it asked.
+            RuleViolation: ``robot_id`` is this robot (the drop is counted too).
+            RobotStateError: the robot stopped while waiting.
+            ValueError: ``retries`` is negative.
+        """
+        return await self._cas.request(robot_id, msg, timeout, retries)
 
     def silent_for(self, robot_id: RobotId) -> float:
         """Simulated seconds since a message from robot ``robot_id`` was last delivered.
@@ -409,26 +277,40 @@ class Layer(Requesting):
         ``math.inf`` when none ever was. A partner whose silence outlasts what the
         protocol expects (a meeting that should have happened) has gone away.
         """
-        robot = self.robot
-        heard = robot.last_heard(robot_id)
-        return math.inf if heard is None else robot.clock.now() - heard
+        return self._cas.silent_for(robot_id)
 
-    # -- delivery from the robot -----------------------------------------------------
 
-    def _accept_external(self, msg: Message) -> bool:
-        """Takes an external message from the robot (already checked for level).
+def overrides(layer: Layer, hook: str) -> bool:
+    """Whether ``layer``'s class overrides the :class:`Layer` hook named ``hook``."""
+    return getattr(type(layer), hook) is not getattr(Layer, hook)
 
-        Returns ``False`` when the inbox was full (the drop is counted).
-        """
-        if msg.corr_id:
-            outcome = self._requests.take(msg)
-            if outcome is not _NOT_A_REPLY:
-                if outcome is _DELIVERED:
-                    self._counters.received_external += 1
-                return True
-        if not self._inbox.offer(msg):
-            self.robot._drop(
-                "queue_full", f"{type(self).__name__}(L{self._level}) inbox full, {msg!r}"
+
+def attach(
+    robot_id: RobotId,
+    layers: Sequence[object],
+    runtime_for: Callable[[Layer, Level], LayerRuntime],
+) -> tuple[LayerRuntime, ...]:
+    """Gives each layer of a new robot its runtime, made by ``runtime_for``: all or none.
+
+    Raises:
+        ConfigurationError: an item is not a :class:`Layer` instance, or a layer
+            already belongs to a robot.
+    """
+    checked: list[Layer] = []
+    for level, layer in enumerate(layers):
+        if not isinstance(layer, Layer):
+            raise ConfigurationError(
+                f"robot {robot_id}: layer {level} is {layer!r}, not a Layer instance"
             )
-            return False
-        return True
+        owner = getattr(layer, "_cas", None)
+        if isinstance(owner, LayerRuntime):
+            raise ConfigurationError(
+                f"robot {robot_id}: {type(layer).__name__} at level {level} already "
+                f"belongs to robot {owner.outbox.robot_id}; "
+                "create one layer instance per robot"
+            )
+        checked.append(layer)
+    runtimes = tuple(runtime_for(layer, level) for level, layer in enumerate(checked))
+    for layer, runtime in zip(checked, runtimes, strict=True):
+        layer._cas = runtime
+    return runtimes

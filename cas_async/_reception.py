@@ -24,19 +24,17 @@ hostile datagrams cannot fill a disk.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Final
+from collections.abc import Callable, Sequence
+from typing import Final, final
 
-from ._dedup import DUPLICATE, ReplyCache, SenderWindows
-from ._errors import DecodeError, RobotStateError, StackMismatchError, UnknownRobotError
+from ._dedup import DUPLICATE, SenderWindows
+from ._errors import DecodeError, StackMismatchError
 from ._fingerprint import describe_fingerprint
+from ._layer_runtime import LayerRuntime
+from ._logs import DropLog, PrefixLogger
 from ._message import Message, MsgType
+from ._outbox import Outbox
 from ._types import RobotId
-from ._wire_codec import WireCodec
-from .transport._base import Endpoint
-
-if TYPE_CHECKING:
-    from ._robot import Robot
 
 __all__ = ["Reception"]
 
@@ -53,117 +51,104 @@ def _describe(data: object) -> str:
     return repr(data)
 
 
+@final
 class Reception:
     """Receives for one robot; see the module docs for what is refused and why.
 
-    Attributes:
-        senders: per sender, the message ids seen and when it was last heard.
-        replies: the replies kept for requests that may be sent again.
-        replies_resent: kept replies sent again to a repeated request.
+    Args:
+        layers: the robot's layer runtimes, top first: where messages are delivered.
+        outbox: the robot's outbox: its codec, who it can reach, the kept replies.
+        drops: counts (and logs) what is refused.
+        log: the robot's logger (a foreign stack is explained there).
     """
 
-    __slots__ = (
-        "_codec",
-        "_endpoint",
-        "_mismatches_seen",
-        "_now",
-        "_robot",
-        "replies",
-        "replies_resent",
-        "running",
-        "senders",
-    )
+    __slots__ = ("_drops", "_layers", "_log", "_mismatches_seen", "_now", "_outbox", "_senders")
 
-    def __init__(self, robot: Robot) -> None:
-        self._robot = robot
-        self._codec: WireCodec | None = None
-        self._endpoint: Endpoint | None = None
-        self._now: Callable[[], float] | None = None
+    def __init__(
+        self,
+        layers: Sequence[LayerRuntime],
+        outbox: Outbox,
+        drops: DropLog,
+        log: PrefixLogger,
+    ) -> None:
+        self._layers = layers
+        self._outbox = outbox
+        self._drops = drops
+        self._log = log
+        self._now: Callable[[], float] | None = None  # set while running
         self._mismatches_seen: set[int] = set()
-        self.senders = SenderWindows()
-        self.replies = ReplyCache()
-        self.replies_resent = 0
-        self.running = False  # set by the robot between start and stop
+        self._senders = SenderWindows()
 
-    def attach(self, codec: WireCodec, endpoint: Endpoint, now: Callable[[], float]) -> None:
-        """Starts receiving with ``codec`` on ``endpoint``; ``now()`` dates each sender's news."""
-        self._codec = codec
-        self._endpoint = endpoint
+    def open(self, now: Callable[[], float]) -> None:
+        """Starts delivering; ``now()`` (loop time) dates each sender's news."""
         self._now = now
+
+    def close(self) -> None:
+        """Stops delivering: what arrives from now on is counted as ``not_running``."""
+        self._now = None
+
+    def last_heard(self, robot_id: RobotId) -> float | None:
+        """Loop time of the latest message accepted from ``robot_id``, or ``None``."""
+        return self._senders.heard(robot_id)
 
     def datagram_received(self, data: bytes, sender: RobotId | None = None) -> None:
         """Decodes, checks and routes one datagram; anything wrong is dropped and counted."""
-        robot = self._robot
-        codec = self._codec
-        if not self.running or codec is None:
-            robot._drop("not_running", f"{_describe(data)} while not running")
+        drop = self._drops.drop
+        now = self._now
+        if now is None:
+            drop("not_running", f"{_describe(data)} while not running")
             return
         try:
-            msg = codec.decode(data)
+            msg = self._outbox.codec.decode(data)
         except StackMismatchError as exc:
             self._refuse_stack(exc)
             return
         except DecodeError as exc:
-            robot._drop(f"decode.{exc.reason}", str(exc))
+            drop(f"decode.{exc.reason}", str(exc))
             return
         level = msg.dst_layer
         claimed = msg.robot_id
+        layers = self._layers
         if msg.src_layer != level:
-            robot._drop(
-                "cross_level", f"external {msg!r}: external messages connect same levels only"
-            )
-        elif not 0 <= level < len(robot.layers):
-            robot._drop(
-                "no_such_layer", f"external {msg!r}: this robot has {len(robot.layers)} layers"
-            )
-        elif claimed == robot.robot_id:
-            robot._drop("from_own_id", f"external {msg!r} claims to come from this robot")
+            drop("cross_level", f"external {msg!r}: external messages connect same levels only")
+        elif not 0 <= level < len(layers):
+            drop("no_such_layer", f"external {msg!r}: this robot has {len(layers)} layers")
+        elif claimed == self._outbox.robot_id:
+            drop("from_own_id", f"external {msg!r} claims to come from this robot")
         elif sender is not None and claimed != sender:
-            robot._drop("spoofed_sender", f"external {msg!r} was sent by robot {sender}")
-        elif sender is None and not self._endpoint.knows(claimed):  # type: ignore[union-attr]
+            drop("spoofed_sender", f"external {msg!r} was sent by robot {sender}")
+        elif sender is None and not self._outbox.knows(claimed):
             # A sender the transport named is one it knows; only an anonymous one is looked up.
-            robot._drop("unknown_sender", f"external {msg!r} from a robot this one cannot reach")
+            drop("unknown_sender", f"external {msg!r} from a robot this one cannot reach")
         else:
-            seen = self.senders.check(claimed, msg.msg_id, self._now())  # type: ignore[misc]
+            seen = self._senders.check(claimed, msg.msg_id, now())
             if seen:
                 self._repeated(msg, seen == DUPLICATE)
-            elif not robot.layers[level]._accept_external(msg):
+            elif not layers[level].accept_external(msg):
                 # Refused by a full inbox: a copy sent again must not count as a repeat.
-                self.senders.forget(claimed, msg.msg_id)
+                self._senders.forget(claimed, msg.msg_id)
 
     def _repeated(self, msg: Message, duplicate: bool) -> None:
-        robot = self._robot
         if not duplicate:
-            robot._drop("stale", f"{msg!r} is too old to tell whether it was seen")
+            self._drops.drop("stale", f"{msg!r} is too old to tell whether it was seen")
             return
         if msg.msg_type == _NEGOTIATION and not msg.corr_id:
-            kept = self.replies.get(msg.robot_id, msg.msg_id)
-            if kept is not None:
-                self.send_reply(msg.robot_id, kept)
-                self.replies_resent += 1
-        robot._drop("duplicate", f"{msg!r} was delivered before")
-
-    def send_reply(self, asker: RobotId, data: bytes) -> None:
-        """Sends an encoded reply; an asker that left meanwhile is a dropped reply, not an error."""
-        try:
-            self._endpoint.send(asker, data)  # type: ignore[union-attr]
-        except (UnknownRobotError, RobotStateError) as exc:
-            self._robot._drop("reply_undeliverable", str(exc))
+            self._outbox.resend_reply(msg.robot_id, msg.msg_id)
+        self._drops.drop("duplicate", f"{msg!r} was delivered before")
 
     def transport_dropped(self, reason: str, detail: str) -> None:
         """Counts what the transport lost or refused, as ``transport.<reason>``."""
-        self._robot._drop(f"transport.{reason}", detail)
+        self._drops.drop(f"transport.{reason}", detail)
 
     def _refuse_stack(self, exc: StackMismatchError) -> None:
         # Explained once per foreign stack, for the first few stacks only: random
         # datagrams carry random fingerprints and must not fill the log or memory.
         seen = self._mismatches_seen
         explain = exc.theirs not in seen and len(seen) < _MISMATCHES_EXPLAINED
-        robot = self._robot
-        robot._drops.drop("stack_mismatch", str(exc), log=not explain)
+        self._drops.drop("stack_mismatch", str(exc), log=not explain)
         if explain:
             seen.add(exc.theirs)
-            robot._log.error(
+            self._log.error(
                 "refusing datagrams from robot %s: its stack (%s) differs from ours (%s). "
                 "Robots that exchange messages must run identical stacks: the same number of "
                 "layers and the same registered messages (import the same message modules, or "

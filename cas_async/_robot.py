@@ -8,19 +8,21 @@ and EndProcess::
         await robot.run()      # until every termination_condition() holds
     # leaving the block cancels the layer tasks and closes the endpoint
 
+The robot owns its parts: one :class:`~cas_async._layer_runtime.LayerRuntime` per
+layer, one :class:`~cas_async._outbox.Outbox` that every outgoing external message
+leaves through, one :class:`~cas_async._reception.Reception` that every incoming
+datagram enters through, and one count of dropped messages they all add to.
+
 The layer tasks live in an ``asyncio.TaskGroup`` owned by a supervisor task, so the
 code that embeds a robot is never cancelled by it: when a layer raises, its siblings
 are cancelled and ``run()`` (or leaving the ``async with``) raises
-:class:`~cas_async._errors.LayerError` naming the robot and layer, with the original
+:class:`~cas_async.LayerError` naming the robot and layer, with the original
 exception as ``__cause__``.
 """
 
 from __future__ import annotations
 
 import asyncio
-import copy
-import enum
-import itertools
 from collections.abc import Iterable, Sequence
 from types import TracebackType
 from typing import final
@@ -29,40 +31,33 @@ from ._channel import DEFAULT_QUEUE_LIMIT
 from ._clock import Clock, ScaledClock
 from ._codec import DEFAULT_MAX_DATAGRAM, MIN_DATAGRAM, Codec
 from ._counters import LayerCounters
-from ._errors import (
-    ConfigurationError,
-    LayerError,
-    RobotStateError,
-    UnknownRobotError,
-)
+from ._errors import ConfigurationError, RobotStateError
 from ._fingerprint import stack_fingerprint
-from ._layer import Layer
+from ._layer import Layer, attach, overrides
+from ._layer_runtime import LayerRuntime
 from ._logs import DropLog, logger_for
 from ._message import Message, specs_for
+from ._outbox import Outbox
 from ._reception import Reception
+from ._robot_state import RobotState
 from ._supervision import RestartPolicy, run_layer
-from ._types import Address, RobotId
-from ._wire_codec import PassThrough, WireCodec
-from .transport._base import Endpoint, Transport
-from .transport._unconnected import Unconnected
+from ._types import Address, Level, RobotId
+from .transport._base import Transport
 
-__all__ = ["Robot", "RobotState"]
-
-
-class RobotState(enum.Enum):
-    """Where a robot is in its (one-way) lifecycle."""
-
-    CREATED = "created"
-    RUNNING = "running"
-    STOPPED = "stopped"
-
-    def __str__(self) -> str:
-        return self.value
+__all__ = ["Robot"]
 
 
 @final
 class Robot:
     """A robot: layers (index 0 = top), an optional transport, and a clock.
+
+    Lifecycle (see :class:`RobotState`): ``async with robot:`` opens the endpoint
+    and starts one task per layer; leaving the block stops the tasks and closes the
+    endpoint. Code that starts many robots together (as :class:`~cas_async.Swarm`
+    does) uses the two halves of each step: :meth:`open` every robot, then
+    :meth:`start` every robot, so that no layer sends to a robot whose endpoint
+    does not exist yet; :meth:`halt` every robot, then :meth:`close` every robot,
+    so that no robot still running sends to one that is gone.
 
     Args:
         robot_id: unique in the swarm.
@@ -79,7 +74,7 @@ class Robot:
             messages to it waits until it has drained to half (internal messages
             are never dropped).
         restart: restart a layer that raises, within these limits, instead of
-            stopping the robot (see :mod:`cas_async._supervision`).
+            stopping the robot (see :class:`~cas_async.RestartPolicy`).
     """
 
     def __init__(
@@ -96,73 +91,76 @@ class Robot:
     ) -> None:
         if type(robot_id) is not int:
             raise ConfigurationError(f"robot_id must be an int, got {robot_id!r}")
-        self.robot_id = robot_id
-        self.layers: tuple[Layer, ...] = tuple(layers)
-        if not self.layers:
+        if not layers:
             raise ConfigurationError(f"robot {robot_id}: a robot needs at least one layer")
         if max_datagram_size < MIN_DATAGRAM or queue_limit < 1:
             raise ConfigurationError(
                 f"robot {robot_id}: max_datagram_size must be at least {MIN_DATAGRAM} bytes "
                 f"and queue_limit at least 1 (got {max_datagram_size}, {queue_limit})"
             )
+        self.robot_id = robot_id
         self.transport = transport
         self.clock: Clock = clock if clock is not None else ScaledClock(1.0)
         self.queue_limit = queue_limit
         self.restart = restart
         self._messages = None if messages is None else tuple(messages)
         self._max_datagram_size = max_datagram_size
-        self._ids = itertools.count(1)
         self._log = logger_for(robot_id)
         self._drops = DropLog(self._log)
+        self._outbox = Outbox(robot_id, self._drops)
         self._state = RobotState.CREATED
-        self._endpoint: Endpoint = Unconnected(robot_id)
-        self._codec: WireCodec | None = None
-        self._passes_objects = False  # whether receivers get the very objects sent (wire_codec.py)
         self._supervisor: asyncio.Task[None] | None = None
-        self._finished: asyncio.Future[None] | None = None
-        self._stop_requested: asyncio.Event | None = None
-        self._failure: BaseException | None = None
-        self._error_reported = False
-        self._connect_layers()
-        self._reception = Reception(self)
-        self._judges = [layer for layer in self.layers if layer._has_termination_condition()]
+        self._stop_requested = asyncio.Event()
+        self._done = asyncio.Event()  # run() returns once set
+        self._outcome: BaseException | None = None  # what run() raises once done
+        self._failure: BaseException | None = None  # a layer's failure, raised once
+        self._judges: list[LayerRuntime] = []
+        self._runtimes = attach(robot_id, layers, self._runtime_for)
+        for runtime in self._runtimes:
+            runtime.link(self._runtimes)
+        self.layers: tuple[Layer, ...] = tuple(layers)
+        self._reception = Reception(self._runtimes, self._outbox, self._drops, self._log)
 
-    def _connect_layers(self) -> None:
-        """Thesis ConnectLayers: levels by list order, each layer knows its neighbours."""
-        for level, layer in enumerate(self.layers):
-            if not isinstance(layer, Layer):
-                raise ConfigurationError(
-                    f"robot {self.robot_id}: layer {level} is {layer!r}, not a Layer instance"
-                )
-            if layer._robot is not None:
-                raise ConfigurationError(
-                    f"robot {self.robot_id}: {type(layer).__name__} at level {level} already "
-                    f"belongs to robot {layer._robot.robot_id}; create one layer instance per robot"
-                )
-            name = type(layer).__name__
-            layer._attach(self, level, logger_for(self.robot_id, name, level))
-        for upper, lower in itertools.pairwise(self.layers):
-            upper._below = lower
-            lower._above = upper
+    def _runtime_for(self, layer: Layer, level: Level) -> LayerRuntime:
+        """Thesis ConnectLayers: the runtime of the layer at ``level``."""
+        name = type(layer).__name__
+        judges = overrides(layer, "termination_condition")
+        runtime = LayerRuntime(
+            layer,
+            self,
+            level,
+            name=name,
+            log=logger_for(self.robot_id, name, level),
+            outbox=self._outbox,
+            drops=self._drops,
+            queue_limit=self.queue_limit,
+            calls_inner=overrides(layer, "inner_process"),
+            on_batch=self._layer_may_be_done if judges else None,
+        )
+        if judges:
+            self._judges.append(runtime)
+        return runtime
 
     # -- introspection -----------------------------------------------------------------
 
     @property
     def state(self) -> RobotState:
-        """CREATED, RUNNING or STOPPED."""
+        """CREATED, OPEN, RUNNING or STOPPED."""
         return self._state
 
     @property
     def fingerprint(self) -> int:
-        """This robot's stack fingerprint (known once started)."""
-        if self._codec is None:
-            raise RobotStateError(f"robot {self.robot_id} has no fingerprint until it starts")
-        return self._codec.fingerprint
+        """This robot's stack fingerprint (known once opened).
+
+        Raises:
+            RobotStateError: the robot has not been opened yet.
+        """
+        return self._outbox.codec.fingerprint
 
     @property
     def address(self) -> Address | None:
         """Where other robots reach this one, once started with a transport."""
-        return self._endpoint.address
+        return self._outbox.address
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -175,11 +173,10 @@ class Robot:
         ``replies_resent`` counts kept replies sent again to a repeated request.
         """
         total = LayerCounters()
-        for layer in self.layers:
-            for name, value in layer.counters.as_dict().items():
-                setattr(total, name, getattr(total, name) + value)
+        for runtime in self._runtimes:
+            total.add(runtime.counters)
         counts = total.as_dict()
-        counts["replies_resent"] = self._reception.replies_resent
+        counts["replies_resent"] = self._outbox.replies_resent
         counts.update({f"dropped.{reason}": n for reason, n in sorted(self._drops.counts.items())})
         return counts
 
@@ -191,81 +188,34 @@ class Robot:
         """
         internal: dict[str, int] = {}
         external: dict[str, int] = {}
-        for layer in self.layers:
-            for split, into in (
-                (layer.counters.internal_by_type, internal),
-                (layer.counters.external_by_type, external),
-            ):
-                for cls, n in split.items():
-                    into[cls.__name__] = into.get(cls.__name__, 0) + n
+        for runtime in self._runtimes:
+            runtime.counters.add_by_name(internal, external)
         return {"internal": internal, "external": external}
 
+    def inbox_sizes(self) -> tuple[int, ...]:
+        """Messages waiting in each layer's inbox, top first: how far each layer is behind."""
+        return tuple(len(runtime.inbox) for runtime in self._runtimes)
+
+    def last_heard(self, robot_id: RobotId) -> float | None:
+        """Simulated time of the latest message delivered from ``robot_id``, or ``None``.
+
+        Every message accepted from it counts (a duplicate too), so a partner that
+        goes quiet shows as a growing ``clock.now() - last_heard(partner)``.
+        """
+        heard = self._reception.last_heard(robot_id)
+        return None if heard is None else self.clock.at_loop_time(heard)
+
     def __repr__(self) -> str:
-        names = ", ".join(type(layer).__name__ for layer in self.layers)
+        names = ", ".join(runtime.name for runtime in self._runtimes)
         return f"Robot({self.robot_id}, [{names}], {self._state})"
 
     # -- lifecycle ---------------------------------------------------------------------
 
     async def __aenter__(self) -> Robot:
         """StartProcess: opens the endpoint and starts one task per layer."""
-        await self._open()
-        self._start()
+        await self.open()
+        self.start()
         return self
-
-    async def _open(self) -> None:
-        """First half of starting: checks the set-up and opens the endpoint.
-
-        A :class:`~cas_async._swarm.Swarm` opens every robot before starting any, so
-        no layer sends to a robot whose endpoint does not exist yet.
-        """
-        if self._state is not RobotState.CREATED or self._codec is not None:
-            raise RobotStateError(
-                f"robot {self.robot_id} is {self._state}; a Robot runs once, create a new one"
-            )
-        loop = asyncio.get_running_loop()
-        self.clock.check_loop(loop)
-        if (
-            self.clock.is_virtual
-            and self.transport is not None
-            and not self.transport.supports_virtual_time
-        ):
-            raise ConfigurationError(
-                f"robot {self.robot_id}: {type(self.transport).__name__} uses real sockets, which "
-                "do not run on virtual time; use MemoryTransport with VirtualClock, "
-                "or ScaledClock with this transport"
-            )
-        specs = specs_for(self._messages)
-        fingerprint = stack_fingerprint(len(self.layers), specs)
-        # Ids only grow, also across restarts of this robot: receivers tell a
-        # re-sent or duplicated message from a new one by (robot id, message id).
-        self._ids = itertools.count(self.clock.message_id_base())
-        if self.transport is not None:
-            self._endpoint = await self.transport.open(self.robot_id, self._reception)
-        limit = min(self._max_datagram_size, self._endpoint.max_datagram_size)
-        try:
-            codec = Codec(specs, fingerprint, limit)
-            self._codec = (
-                codec if self.transport is None else self.transport.wire_codec(self.robot_id, codec)
-            )
-        except BaseException:
-            self._close()  # the socket must not outlive a robot that never started
-            raise
-        self._passes_objects = isinstance(self._codec, PassThrough)
-        self._reception.attach(self._codec, self._endpoint, loop.time)
-
-    def _start(self) -> None:
-        """Second half of starting: starts the clock and one task per layer."""
-        loop = asyncio.get_running_loop()
-        self.clock.start()
-        self._finished = loop.create_future()
-        self._stop_requested = asyncio.Event()
-        self._state = RobotState.RUNNING
-        self._reception.running = True
-        for layer in self.layers:
-            layer._live = True
-        self._supervisor = loop.create_task(
-            self._supervise(), name=f"cas_async robot {self.robot_id}"
-        )
 
     async def __aexit__(
         self,
@@ -281,20 +231,83 @@ class Robot:
         if self._state is not RobotState.RUNNING:
             return
         try:
-            await self._halt()
+            await self.halt()
         finally:
-            self._close()
-        self._raise_unreported(exc)
+            self.close()
+        failure = self.take_failure()
+        if failure is not None:
+            if exc is None:
+                raise failure
+            exc.add_note(f"meanwhile {failure}")  # the body's own exception goes on
 
-    async def _halt(self) -> None:
+    async def open(self) -> None:
+        """First half of starting: checks the set-up and opens the endpoint (CREATED to OPEN).
+
+        Raises:
+            RobotStateError: the robot was opened before (a Robot runs once).
+            ConfigurationError: the clock, transport or messages cannot work together.
+        """
+        if self._state is not RobotState.CREATED:
+            raise RobotStateError(
+                f"robot {self.robot_id} is {self._state}; a Robot runs once, create a new one"
+            )
+        loop = asyncio.get_running_loop()
+        self.clock.check_loop(loop)
+        transport = self.transport
+        if self.clock.is_virtual and transport is not None and not transport.supports_virtual_time:
+            raise ConfigurationError(
+                f"robot {self.robot_id}: {type(transport).__name__} uses real sockets, which "
+                "do not run on virtual time; use MemoryTransport with VirtualClock, "
+                "or ScaledClock with this transport"
+            )
+        specs = specs_for(self._messages)  # refuses an unregistered class before any socket
+        fingerprint = stack_fingerprint(len(self._runtimes), specs)
+        first_id = self.clock.message_id_base()
+        if transport is None:
+            codec = Codec(specs, fingerprint, self._max_datagram_size)
+            self._outbox.connect(codec, None, first_id)
+        else:
+            endpoint = await transport.open(self.robot_id, self._reception)
+            try:
+                limit = min(self._max_datagram_size, endpoint.max_datagram_size)
+                wire = transport.wire_codec(self.robot_id, Codec(specs, fingerprint, limit))
+            except BaseException:
+                endpoint.close()  # the socket must not outlive a robot that never started
+                self._state = RobotState.STOPPED
+                raise
+            self._outbox.connect(wire, endpoint, first_id)
+        self._state = RobotState.OPEN
+
+    def start(self) -> None:
+        """Second half of starting: starts the clock and one task per layer (OPEN to RUNNING).
+
+        Raises:
+            RobotStateError: the robot is not open.
+        """
+        if self._state is not RobotState.OPEN:
+            raise RobotStateError(
+                f"robot {self.robot_id} is {self._state}; open() it (once) before start()"
+            )
+        loop = asyncio.get_running_loop()
+        self.clock.start()
+        self._state = RobotState.RUNNING
+        self._reception.open(loop.time)
+        for runtime in self._runtimes:
+            runtime.start()
+        self._supervisor = loop.create_task(
+            self._supervise(), name=f"cas_async robot {self.robot_id}"
+        )
+
+    async def halt(self) -> None:
         """Stops the layer tasks and waits for them; the endpoint stays open.
 
-        A :class:`~cas_async._swarm.Swarm` halts every robot before closing any, so
-        no robot still running sends to one that is gone.
+        Called by leaving ``async with``; a :class:`~cas_async.Swarm` halts every
+        robot before closing any. Does nothing when the robot never started.
         """
-        self.stop()
         supervisor = self._supervisor
-        assert supervisor is not None
+        if supervisor is None:
+            return
+        self.stop()
         try:
             await asyncio.shield(supervisor)
         except asyncio.CancelledError:
@@ -303,64 +316,27 @@ class Robot:
             await asyncio.wait([supervisor])
             raise
 
-    def _raise_unreported(self, exc: BaseException | None) -> None:
-        """Raises a layer failure that ``run()`` did not raise; notes it on ``exc`` if any."""
-        error = self._error()
-        if error is None or self._error_reported:
-            return
-        self._error_reported = True
-        if exc is None:
-            raise error
-        exc.add_note(f"meanwhile {error}")  # the body's own exception goes on
+    def close(self) -> None:
+        """Closes the endpoint and fails what still waits on the robot (to STOPPED); idempotent.
 
-    def _close(self) -> None:
+        Call it after :meth:`halt`: a layer still running would find its robot gone.
+        """
         if self._state is RobotState.STOPPED:
             return
-        self._reception.running = False
-        for layer in self.layers:
-            layer._live = False
-            layer._requests.close()
-            layer._cancel_wakes()
-        self._endpoint.close()
+        self._reception.close()
+        for runtime in self._runtimes:
+            runtime.close()
+        self._outbox.close()
         self._state = RobotState.STOPPED
 
-    async def _supervise(self) -> None:
-        try:
-            async with asyncio.TaskGroup() as group:
-                tasks = [
-                    group.create_task(
-                        run_layer(self, layer, self.restart),
-                        name=f"cas_async {layer.log.prefix.rstrip(': ')}",
-                    )
-                    for layer in self.layers
-                ]
-                assert self._stop_requested is not None
-                await self._stop_requested.wait()
-                for task in tasks:
-                    task.cancel()
-        except BaseExceptionGroup as group:
-            first, *others = group.exceptions
-            for other in others:
-                first.add_note(f"at the same time: {other}")
-            # Kept apart from run()'s result: a failure after run() returned (or during
-            # shutdown) must still surface when the robot's block is left.
-            self._failure = first
-            self._finish(first)
+    def take_failure(self) -> BaseException | None:
+        """The layer failure that ``run()`` did not raise, once; ``None`` if there is none.
 
-    def _finish(self, error: BaseException | None) -> None:
-        finished = self._finished
-        if finished is not None and not finished.done():
-            if error is None:
-                finished.set_result(None)
-            else:
-                finished.set_exception(error)
-                self._stop_requested.set()  # type: ignore[union-attr]
-
-    def _error(self) -> BaseException | None:
-        finished = self._finished
-        if finished is not None and finished.done() and not finished.cancelled():
-            finished.exception()  # marks it retrieved: no "never retrieved" warning
-        return self._failure
+        Leaving ``async with`` raises it; code driving :meth:`halt` and :meth:`close`
+        itself raises it (or attaches it to its own error) after closing.
+        """
+        failure, self._failure = self._failure, None
+        return failure
 
     async def run(self) -> None:
         """Runs until every layer's ``termination_condition()`` holds, or ``stop()``.
@@ -369,20 +345,20 @@ class Robot:
 
         Raises:
             LayerError: a layer raised; the other layers were stopped.
-            RobotStateError: the robot was already stopped.
+            RobotStateError: the robot is stopped, or open but not started.
         """
         if self._state is RobotState.CREATED:
             async with self:
                 await self.run()
             return
-        if self._state is RobotState.STOPPED:
-            raise RobotStateError(f"robot {self.robot_id} is stopped; a Robot runs once")
-        assert self._finished is not None
-        try:
-            await asyncio.shield(self._finished)
-        except LayerError:
-            self._error_reported = True
-            raise
+        if self._state is not RobotState.RUNNING:
+            raise RobotStateError(f"robot {self.robot_id} is {self._state}; a Robot runs once")
+        await self._done.wait()
+        outcome = self._outcome
+        if outcome is not None:
+            if outcome is self._failure:
+                self._failure = None  # reported here: leaving the block does not raise it again
+            raise outcome
 
     def stop(self) -> None:
         """Asks the robot to stop: ``run()`` returns and the layer tasks are cancelled.
@@ -392,74 +368,47 @@ class Robot:
         Raises:
             RobotStateError: the robot was never started.
         """
-        if self._state is RobotState.CREATED:
+        if self._state in (RobotState.CREATED, RobotState.OPEN):
             raise RobotStateError(f"robot {self.robot_id} was never started")
         self._finish(None)
-        if self._stop_requested is not None:
+        self._stop_requested.set()
+
+    async def _supervise(self) -> None:
+        try:
+            async with asyncio.TaskGroup() as group:
+                tasks = [
+                    group.create_task(
+                        run_layer(runtime, self.restart),
+                        name=f"cas_async {runtime.log.prefix.rstrip(': ')}",
+                    )
+                    for runtime in self._runtimes
+                ]
+                await self._stop_requested.wait()
+                for task in tasks:
+                    task.cancel()
+        except BaseExceptionGroup as group:
+            first, *others = group.exceptions
+            for other in others:
+                first.add_note(f"at the same time: {other}")
+            # Kept apart from run()'s outcome: a failure after run() returned (or during
+            # shutdown) must still surface when the robot's block is left.
+            self._failure = first
+            self._finish(first)
+
+    def _finish(self, error: BaseException | None) -> None:
+        if not self._done.is_set():
+            self._outcome = error
+            self._done.set()
+        if error is not None:
             self._stop_requested.set()
 
-    # -- termination -------------------------------------------------------------------
-
-    def _layer_may_be_done(self, layer: Layer) -> None:
-        """Called after a layer's batch: finishes ``run()`` when every layer is done.
+    def _layer_may_be_done(self, runtime: LayerRuntime) -> None:
+        """Called after a judging layer's batch: finishes ``run()`` when every judge is done.
 
         Only layers that override ``termination_condition`` have a say: a layer
         that merely forwards should not keep a robot running forever.
         """
-        if layer.termination_condition() and all(
-            other.termination_condition() for other in self._judges
+        if runtime.layer.termination_condition() and all(
+            judge.layer.termination_condition() for judge in self._judges
         ):
             self._finish(None)
-
-    # -- external messages (called by layers) --------------------------------------------
-
-    def _send_reply(self, asker: RobotId, request_id: int, response: Message) -> None:
-        """Sends an external reply and keeps it, for a repetition of the request."""
-        data = self._codec.encode(response)  # type: ignore[union-attr]
-        reception = self._reception
-        reception.replies.keep(asker, request_id, data)
-        reception.send_reply(asker, data)
-
-    def last_heard(self, robot_id: RobotId) -> float | None:
-        """Simulated time of the latest message delivered from ``robot_id``, or ``None``.
-
-        Every message accepted from it counts (a duplicate too), so a partner that
-        goes quiet shows as a growing ``clock.now() - last_heard(partner)``.
-        """
-        heard = self._reception.senders.heard(robot_id)
-        return None if heard is None else self.clock.at_loop_time(heard)
-
-    def _broadcast(
-        self, msg: Message, robots: Iterable[RobotId] | None
-    ) -> tuple[int, list[RobotId]]:
-        endpoint = self._endpoint
-        data = self._codec.encode(msg)  # type: ignore[union-attr]
-        sent, unknown = 0, []
-        for robot_id in endpoint.peers() if robots is None else robots:
-            if robot_id == self.robot_id:
-                continue
-            if sent and self._passes_objects:  # each receiver gets a message of its own
-                data = self._codec.encode(copy.copy(msg))  # type: ignore[union-attr]
-            try:
-                endpoint.send(robot_id, data)
-            except UnknownRobotError:
-                unknown.append(robot_id)
-            else:
-                sent += 1
-        return sent, unknown
-
-    # -- DatagramSink: the transport delivers to the Reception -------------------------
-
-    def datagram_received(self, data: bytes, sender: RobotId | None = None) -> None:
-        """Handles one datagram as if the transport had delivered it (see :class:`Reception`)."""
-        self._reception.datagram_received(data, sender)
-
-    def transport_dropped(self, reason: str, detail: str) -> None:
-        """Counts what the transport lost or refused."""
-        self._reception.transport_dropped(reason, detail)
-
-    def _drop(self, reason: str, detail: str) -> None:
-        self._drops.drop(reason, detail)
-
-    def _violation(self, reason: str, layer: Layer, msg: Message) -> None:
-        self._drops.drop(reason, f"{type(layer).__name__}(L{layer._level}) sent {msg!r}")

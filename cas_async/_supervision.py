@@ -19,14 +19,9 @@ import asyncio
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from ._errors import LayerError
-from ._layer_loop import run_loop
-
-if TYPE_CHECKING:
-    from ._layer import Layer
-    from ._robot import Robot
+from ._layer_runtime import LayerRuntime
 
 __all__ = ["RestartPolicy", "run_layer"]
 
@@ -51,16 +46,17 @@ class RestartPolicy:
             raise ValueError(f"within must be > 0 simulated seconds, got {self.within!r}")
 
 
-async def run_layer(robot: Robot, layer: Layer, policy: RestartPolicy | None) -> None:
-    """Runs ``layer``'s loop under ``policy`` until the robot cancels it.
+async def run_layer(runtime: LayerRuntime, policy: RestartPolicy | None) -> None:
+    """Runs a layer's loop under ``policy`` until the robot cancels it.
 
     Raises:
         LayerError: the layer failed (and may not be restarted).
     """
     failures: deque[float] = deque()
+    robot_id, level, name, log = runtime.robot.robot_id, runtime.level, runtime.name, runtime.log
     while True:
         try:
-            await run_loop(layer)
+            await runtime.run_loop()
             return
         except asyncio.CancelledError as exc:
             task = asyncio.current_task()
@@ -68,34 +64,29 @@ async def run_layer(robot: Robot, layer: Layer, policy: RestartPolicy | None) ->
                 raise  # the robot is stopping (or a sibling failed)
             # Nobody cancelled this task: an await inside the layer was cancelled (say,
             # a driver's future). The layer is dead; the robot must not run on without it.
-            layer.log.error("failed: an await was cancelled from outside the robot")
-            raise LayerError(robot.robot_id, layer._level, type(layer).__name__, exc) from exc
+            log.error("failed: an await was cancelled from outside the robot")
+            raise LayerError(robot_id, level, name, exc) from exc
         except Exception as exc:
-            if not _may_restart(robot, policy, failures):
-                layer.log.error("failed, stopping the robot", exc_info=exc)
-                raise LayerError(robot.robot_id, layer._level, type(layer).__name__, exc) from exc
-            layer.log.error(
+            if policy is None or not _may_restart(runtime.clock.now(), policy, failures):
+                log.error("failed, stopping the robot", exc_info=exc)
+                raise LayerError(robot_id, level, name, exc) from exc
+            log.error(
                 "failed, restarting (restart %d of %d allowed within %g s)",
                 len(failures),
-                policy.max_restarts,  # type: ignore[union-attr]
-                policy.within,  # type: ignore[union-attr]
+                policy.max_restarts,
+                policy.within,
                 exc_info=exc,
             )
-            layer._counters.restarts += 1
+            runtime.counters.restarts += 1
             try:
-                await layer.on_restart(exc)
+                await runtime.layer.on_restart(exc)
             except Exception as again:
-                layer.log.error("on_restart failed, stopping the robot", exc_info=again)
-                raise LayerError(
-                    robot.robot_id, layer._level, type(layer).__name__, again
-                ) from again
+                log.error("on_restart failed, stopping the robot", exc_info=again)
+                raise LayerError(robot_id, level, name, again) from again
 
 
-def _may_restart(robot: Robot, policy: RestartPolicy | None, failures: deque[float]) -> bool:
-    """Records a failure now; whether the policy still allows a restart."""
-    if policy is None:
-        return False
-    now = robot.clock.now()
+def _may_restart(now: float, policy: RestartPolicy, failures: deque[float]) -> bool:
+    """Records a failure at ``now``; whether the policy still allows a restart."""
     failures.append(now)
     if policy.within != math.inf:
         while failures and failures[0] <= now - policy.within:

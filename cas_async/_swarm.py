@@ -17,8 +17,9 @@ from collections.abc import Iterable, Iterator
 from types import TracebackType
 from typing import final
 
-from ._errors import ConfigurationError, LayerError, RobotStateError
-from ._robot import Robot, RobotState
+from ._errors import ConfigurationError, RobotStateError
+from ._robot import Robot
+from ._robot_state import RobotState
 from ._types import RobotId
 
 __all__ = ["Swarm"]
@@ -71,14 +72,14 @@ class Swarm:
         opened: list[Robot] = []
         try:
             for robot in self:
-                await robot._open()
+                await robot.open()
                 opened.append(robot)
         except BaseException:
             for robot in opened:
-                robot._close()
+                robot.close()
             raise
         for robot in self:
-            robot._start()
+            robot.start()
         return self
 
     async def __aexit__(
@@ -97,17 +98,15 @@ class Swarm:
         for robot in running:
             robot.stop()
         try:
-            await asyncio.gather(*(robot._halt() for robot in running))
+            await asyncio.gather(*(robot.halt() for robot in running))
         finally:
             for robot in running:
-                robot._close()
-        errors: list[BaseException] = []
-        for robot in running:
-            try:
-                robot._raise_unreported(exc)
-            except LayerError as error:
-                errors.append(error)
-        if errors:
+                robot.close()
+        errors = [error for robot in running if (error := robot.take_failure()) is not None]
+        if exc is not None:  # the block's own exception goes on, with ours noted on it
+            for error in errors:
+                exc.add_note(f"meanwhile {error}")
+        elif errors:
             first, *others = errors
             for other in others:
                 first.add_note(f"also {other}")
@@ -126,10 +125,11 @@ class Swarm:
         try:
             done, _ = await asyncio.wait(runs, return_when=asyncio.FIRST_EXCEPTION)
             for task in done:
-                if task.exception() is not None:
+                error = task.exception()
+                if error is not None:
                     self.stop()
                     await asyncio.wait(runs)  # the others return once stopped
-                    raise task.exception()  # type: ignore[misc]
+                    raise error
         finally:
             for task in runs:
                 task.cancel()

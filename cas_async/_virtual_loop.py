@@ -71,6 +71,13 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         """The virtual time, in seconds."""
         return self._virtual_now
 
+    def timer_deadlines(self) -> list[float]:
+        """The virtual instants of the timers still to go off, earliest first."""
+        # The base loop's heap of timers (typeshed does not declare it); cancelled
+        # handles stay in it until the loop cleans up, so they are skipped here.
+        scheduled: list[asyncio.TimerHandle] = self._scheduled  # type: ignore[attr-defined]
+        return sorted(handle.when() for handle in scheduled if not handle.cancelled())
+
     def advance(self, seconds: float) -> None:
         """Moves virtual time forward; it never goes back.
 

@@ -39,6 +39,10 @@ class WireCodec(Protocol):
     def fingerprint(self) -> int:
         """The robot's stack fingerprint."""
 
+    @property
+    def passes_objects(self) -> bool:
+        """Whether receivers get the very message objects sent (no bytes in between)."""
+
     def encode(self, msg: Message) -> bytes:
         """What the transport carries for ``msg``."""
 
@@ -57,6 +61,8 @@ class PassThrough:
     """
 
     __slots__ = ("_classes", "_opened_by", "fingerprint")
+
+    passes_objects = True
 
     def __init__(self, codec: Codec, robot_id: RobotId) -> None:
         self.fingerprint = codec.fingerprint

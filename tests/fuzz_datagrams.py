@@ -5,8 +5,8 @@ seeded ``random.Random`` and the victim's own :class:`~cas_async.Codec` (same
 messages, same stack fingerprint), so that the mutations start from datagrams
 the victim would accept::
 
-    hostile = HostileDatagrams(victim._codec, random.Random(7), victim=1, attacker=99,
-                               partner=2, levels=1)
+    hostile = HostileDatagrams(Codec.for_stack(1, messages), random.Random(7), victim=1,
+                               attacker=99, partner=2, levels=1)
     data = hostile.make("byte_flipped")
 
 Every datagram claims to come from ``attacker`` (the robot at the address it is
@@ -23,7 +23,8 @@ from typing import Any, Final
 
 import msgpack
 
-from cas_async import Codec, DecodeError, Message, MsgType, spec_of
+from cas_async import DecodeError, Message, MsgType, spec_of
+from cas_async.transport import Codec
 from tests.stacks import Answer, Note, Query
 
 __all__ = ["KINDS", "UNKNOWN_ROBOT", "HostileDatagrams", "kinds_in_turn"]

@@ -9,13 +9,22 @@ from collections.abc import AsyncIterator, Iterable, Iterator
 
 import pytest
 
-from cas_async import MemoryTransport, MsgType, Robot, UdpTransport
-from cas_async._errors import ConfigurationError, RobotStateError, UnknownRobotError
-from cas_async._swarm_key import SwarmKey
-from cas_async._types import Address, RobotId
-from cas_async.transport._authenticated import AuthenticatedTransport
-from cas_async.transport._base import DatagramSink, Endpoint, Transport
-from cas_async.transport._udp import InsecureBindWarning
+from cas_async import (
+    Address,
+    AuthenticatedTransport,
+    ConfigurationError,
+    InsecureBindWarning,
+    MemoryTransport,
+    MsgType,
+    Robot,
+    RobotId,
+    RobotStateError,
+    SwarmKey,
+    Transport,
+    UdpTransport,
+    UnknownRobotError,
+)
+from cas_async.transport import DatagramSink, Endpoint
 from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, recorders
 

@@ -32,9 +32,9 @@ class Producer(Layer):
     async def inner_process(self) -> None:
         if self.sent >= TOTAL:
             return
-        inbox = self.robot.layers[self.to]._inbox
+        sizes = self.robot.inbox_sizes
         self.bursts.append(self.clock.now())
-        self.before_burst.append(len(inbox))
+        self.before_burst.append(sizes()[self.to])
         for _ in range(BURST):
             note = Note(str(self.sent), [])
             if self.to == self.level + 1:
@@ -44,7 +44,7 @@ class Producer(Layer):
             else:
                 self.send_to_layer(self.to, note)
             self.sent += 1
-            self.peak = max(self.peak, len(inbox))
+            self.peak = max(self.peak, sizes()[self.to])
         self.wake_after(self.period)
 
 
@@ -165,7 +165,7 @@ class Echo(Layer):
     async def store_intra_msg(self, msg: Message) -> None:
         assert isinstance(msg, Note)
         self.handled += 1
-        self.peak = max(self.peak, len(self._inbox) + 1)
+        self.peak = max(self.peak, self.robot.inbox_sizes()[self.level] + 1)
         if self.pace:
             await self.clock.sleep(self.pace)
         if len(msg.hops) < TTL:
@@ -319,7 +319,7 @@ class Slow(Layer):
 
     async def handle_msg(self, msg: Message) -> None:
         self.handled += 1
-        self.peak = max(self.peak, len(self._inbox) + 1)
+        self.peak = max(self.peak, self.robot.inbox_sizes()[self.level] + 1)
         await self.clock.sleep(0.1)
 
 
@@ -357,7 +357,7 @@ def test_an_external_flood_is_dropped_at_the_limit_and_does_not_starve_other_lay
                 for k in range(size):  # thousands in one go, none of them yielding
                     flooder[0].send(1, Note(str(k), []))
                 await asyncio.sleep(0)  # the datagrams are delivered (call_soon)
-                after_flood.append(len(slow._inbox))
+                after_flood.append(victim.inbox_sizes()[slow.level])
             await clock.sleep(20.0 - clock.now())
         return slow, ticker, victim.dropped, after_flood
 
@@ -410,7 +410,7 @@ def test_a_reply_reaches_its_request_even_when_the_inbox_is_full() -> None:
             for k in range(100):
                 flooder.send(1, Note(str(k), []))
             await clock.sleep(1.0)
-            full = len(asking._inbox)
+            full = victim.inbox_sizes()[0]
             await clock.sleep(5.0)
         return asking.replies, full, victim.dropped
 

@@ -13,19 +13,17 @@ import numpy.typing as npt
 import pytest
 
 from cas_async import (
-    Codec,
     DecodeError,
     EncodeError,
     Message,
     MessageDefinitionError,
     MsgType,
     StackMismatchError,
-    describe_fingerprint,
     message,
     spec_of,
-    stack_fingerprint,
 )
 from cas_async._message import specs_for
+from cas_async.transport import Codec, describe_fingerprint, stack_fingerprint
 
 
 class CodecColor(IntEnum):

@@ -16,10 +16,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cas_async import Codec, DecodeError, Message, message
-from cas_async import stack_fingerprint as fingerprint_of
+from cas_async import DecodeError, Message, message, spec_of
 from cas_async._codegen import compiled
-from cas_async._message import spec_of, specs_for
+from cas_async._message import specs_for
+from cas_async.transport import Codec
+from cas_async.transport import stack_fingerprint as fingerprint_of
 
 from .test_codec_properties import PropAll, PropInner, PropSmall, ints64, same, wire_values
 

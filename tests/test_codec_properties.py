@@ -13,9 +13,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from cas_async import Codec, DecodeError, Message, MsgType, StackMismatchError, message, spec_of
-from cas_async import stack_fingerprint as fingerprint_of
+from cas_async import DecodeError, Message, MsgType, StackMismatchError, message, spec_of
 from cas_async._message import HEADER_FIELDS, specs_for
+from cas_async.transport import Codec
+from cas_async.transport import stack_fingerprint as fingerprint_of
 
 
 class PropMode(IntEnum):

@@ -7,6 +7,7 @@ import asyncio
 import cas_async
 from cas_async import Message, RequestTimeout, Robot, VirtualClock
 from cas_async._deadlines import Deadlines
+from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Query, Recorder
 
 
@@ -79,9 +80,12 @@ def test_an_infinite_timeout_waits_as_long_as_it_takes_and_arms_no_timer() -> No
         robot = Robot(1, [asker, Slow()], clock=clock, messages=STACK_MESSAGES)
         async with robot:
             pending = asyncio.ensure_future(asker.request_down(Query(4), timeout=float("inf")))
-            await asyncio.sleep(0)
-            armed = len(asker._requests._deadlines._heap)  # type: ignore[union-attr]
+            await settle()
+            loop = asyncio.get_running_loop()
+            assert isinstance(loop, cas_async.VirtualTimeLoop)
+            armed = loop.timer_deadlines()
             answer = await pending
         return clock.now(), answer.value, armed  # type: ignore[attr-defined]
 
-    assert cas_async.run(main(), virtual=True) == (10_000.0, 8, 0)
+    # The only timer is the answerer's sleep: the request's infinite timeout armed none.
+    assert cas_async.run(main(), virtual=True) == (10_000.0, 8, [10_000.0])

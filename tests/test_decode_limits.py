@@ -21,9 +21,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cas_async import Codec, DecodeError, Message, MsgType, message, spec_of, stack_fingerprint
+from cas_async import DecodeError, Message, MsgType, message, spec_of
 from cas_async._codec import MIN_DATAGRAM
 from cas_async._message import specs_for
+from cas_async.transport import Codec, stack_fingerprint
 
 
 @message

@@ -20,7 +20,9 @@ from cas_async import (
     VirtualClock,
 )
 from cas_async._dedup import DUPLICATE, FRESH, STALE, WINDOW, ReplyCache, SenderWindows
+from cas_async.transport import Codec
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
+from tests.taps import Tap
 
 # -- SenderWindows ---------------------------------------------------------------------
 
@@ -407,10 +409,10 @@ def test_a_request_refused_by_a_full_inbox_is_handled_when_sent_again() -> None:
 # -- who may claim to have sent a datagram -----------------------------------------------
 
 
-def encoded(robot: Robot, msg: Message, *, claims: int, msg_id: int) -> bytes:
-    """``msg`` as robot ``claims`` would send it to the same level (layer 0)."""
+def encoded(msg: Message, *, claims: int, msg_id: int) -> bytes:
+    """``msg`` as robot ``claims`` of a one-layer stack would send it to layer 0."""
     msg.msg_id, msg.robot_id, msg.src_layer, msg.dst_layer = msg_id, claims, 0, 0
-    return robot._codec.encode(msg)  # type: ignore[union-attr]
+    return Codec.for_stack(1, STACK_MESSAGES).encode(msg)
 
 
 @pytest.mark.parametrize(
@@ -429,14 +431,13 @@ def test_the_claimed_sender_must_match_the_transport_and_be_reachable(
     claims: int, sender: int | None, outcome: str
 ) -> None:
     async def main() -> tuple[int, dict[str, int]]:
-        clock, memory = VirtualClock(), MemoryTransport()
+        clock, tap = VirtualClock(), Tap()
         receiver = Counting()
-        robots = [robot(1, receiver, memory, clock)] + [
-            robot(i, Recorder(), memory, clock) for i in (2, 3)
+        robots = [robot(1, receiver, tap, clock)] + [
+            robot(i, Recorder(), tap, clock) for i in (2, 3)
         ]
         async with Swarm(robots):
-            data = encoded(robots[0], Note("hello", []), claims=claims, msg_id=5)
-            robots[0].datagram_received(data, sender)
+            tap.deliver(1, encoded(Note("hello", []), claims=claims, msg_id=5), sender)
             await clock.sleep(1.0)
         return len(receiver.external), robots[0].dropped
 
@@ -449,16 +450,15 @@ def test_the_claimed_sender_must_match_the_transport_and_be_reachable(
 
 def test_a_refused_datagram_does_not_mark_its_id_as_seen() -> None:
     async def main() -> tuple[int, dict[str, int], float | None]:
-        clock, memory = VirtualClock(), MemoryTransport()
+        clock, tap = VirtualClock(), Tap()
         receiver = Counting()
-        robots = [robot(1, receiver, memory, clock), robot(2, Recorder(), memory, clock)]
+        robots = [robot(1, receiver, tap, clock), robot(2, Recorder(), tap, clock)]
         async with Swarm(robots):
             await clock.sleep(3.0)
-            forged = encoded(robots[0], Note("forged", []), claims=2, msg_id=5)
-            robots[0].datagram_received(forged, 3)  # spoofed: must not burn id 5 of robot 2
+            forged = encoded(Note("forged", []), claims=2, msg_id=5)
+            tap.deliver(1, forged, 3)  # spoofed: must not burn id 5 of robot 2
             heard_after_forgery = robots[0].last_heard(2)
-            honest = encoded(robots[0], Note("honest", []), claims=2, msg_id=5)
-            robots[0].datagram_received(honest, 2)
+            tap.deliver(1, encoded(Note("honest", []), claims=2, msg_id=5), 2)
             await clock.sleep(1.0)
         return len(receiver.external), robots[0].dropped, heard_after_forgery
 

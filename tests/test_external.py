@@ -24,6 +24,7 @@ from cas_async import (
 )
 from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
+from tests.taps import Tap
 
 
 @pytest.fixture(params=["memory", "pass_objects", "udp"])
@@ -213,11 +214,11 @@ async def test_hostile_datagrams_over_real_udp_are_dropped_and_counted(start_rob
 
 
 async def test_oversize_datagrams_are_refused_by_the_memory_transport_too(start_robot) -> None:
-    transport = MemoryTransport()
+    transport = Tap()
     stack = recorders(1)
     robot = await start_robot(1, stack, transport=transport)
     await start_robot(2, recorders(1), transport=transport)
-    robot.datagram_received(b"\x00" * 70_000)
+    transport.deliver(1, b"\x00" * 70_000)
     assert robot.dropped == {"decode.oversize": 1}
 
 
@@ -237,7 +238,7 @@ async def test_full_inbox_drops_external_messages(start_robot) -> None:
         sender[0].send(1, Note(str(i), []))
     await settle()
     assert receiver.dropped == {"queue_full": 5}  # five wait in the inbox, five were refused
-    assert len(receiver.layers[0]._inbox) == 5
+    assert receiver.inbox_sizes()[0] == 5
 
 
 async def test_virtual_time_refuses_udp() -> None:

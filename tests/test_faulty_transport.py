@@ -10,12 +10,18 @@ from typing import Any, TypeVar
 import pytest
 
 import cas_async
-from cas_async._clock import Clock, ScaledClock, VirtualClock
-from cas_async._errors import RobotStateError, UnknownRobotError
-from cas_async.transport._base import Endpoint
-from cas_async.transport._faulty import Faults, FaultyTransport
-from cas_async.transport._memory import MemoryTransport
-from cas_async.transport._udp import UdpTransport
+from cas_async import (
+    Clock,
+    Faults,
+    FaultyTransport,
+    MemoryTransport,
+    RobotStateError,
+    ScaledClock,
+    UdpTransport,
+    UnknownRobotError,
+    VirtualClock,
+)
+from cas_async.transport import Endpoint
 
 T = TypeVar("T")
 

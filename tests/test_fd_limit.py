@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from cas_async._errors import ConfigurationError
+from cas_async import ConfigurationError
 from cas_async.transport import _fd_limit as fd_limit
 from cas_async.transport._fd_limit import ensure_descriptors
 

@@ -34,6 +34,7 @@ from cas_async import (
     UdpTransport,
     VirtualClock,
 )
+from cas_async.transport import Codec
 from tests.fuzz_datagrams import KINDS, HostileDatagrams, kinds_in_turn
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
 
@@ -157,9 +158,13 @@ async def attack(
     After each burst the mission may ask one more query (spread over the attack).
     """
     rng = random.Random(seed)
-    assert victim._codec is not None  # the victim is running
     hostile = HostileDatagrams(
-        victim._codec, rng, victim=VICTIM, attacker=ATTACKER, partner=PARTNER, levels=1
+        Codec.for_stack(len(victim.layers), STACK_MESSAGES),
+        rng,
+        victim=VICTIM,
+        attacker=ATTACKER,
+        partner=PARTNER,
+        levels=1,
     )
     turns = kinds_in_turn(rng, total, burst)
     table: dict[str, Counter[str]] = {kind: Counter() for kind in KINDS}
@@ -309,10 +314,9 @@ async def test_a_stranger_claiming_the_partner_cannot_silence_it() -> None:
             Robot(PARTNER, [partner_layer], transport=transport, messages=STACK_MESSAGES),
             Robot(VICTIM, [victim_layer], transport=transport, messages=STACK_MESSAGES) as victim,
         ):
-            assert victim._codec is not None
             forged = Note("forged", [])
             forged.msg_id, forged.robot_id = 2**63, PARTNER
-            stranger.sendto(victim._codec.encode(forged), victim.address)
+            stranger.sendto(Codec.for_stack(1, STACK_MESSAGES).encode(forged), victim.address)
 
             def accounted() -> int:
                 return sum(victim.dropped.values()) + len(victim_layer.external)

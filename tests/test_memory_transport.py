@@ -6,7 +6,7 @@ import asyncio
 from typing import Any
 
 from cas_async import MemoryTransport
-from cas_async.transport._base import Endpoint
+from cas_async.transport import Endpoint
 
 
 class Sink:

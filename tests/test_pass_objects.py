@@ -7,6 +7,7 @@ import pytest
 from cas_async import ConfigurationError, MemoryTransport, Message, MsgType, Robot, message
 from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Note, Query, Recorder, recorders
+from tests.taps import Tap
 
 
 @pytest.fixture
@@ -71,7 +72,7 @@ async def test_a_request_is_answered_and_a_repeated_one_gets_the_kept_reply(
     await settle()
     a[0].resend(2, query)  # as after a lost reply: the same id again
     await settle()
-    assert robot_b._reception.replies_resent == 1
+    assert robot_b.counters()["replies_resent"] == 1
     assert robot_b.dropped == {"duplicate": 1}
     assert [m.value for m in a[0].external] == [10]  # the kept reply again is a duplicate
     assert robot_a.dropped == {"duplicate": 1}
@@ -91,9 +92,10 @@ async def test_what_is_not_a_message_of_the_stack_is_dropped_and_counted(
         n: int
 
     a, b = recorders(1), recorders(1)
-    await start_robot(1, a, transport=objects)
-    robot_b = await start_robot(2, b, transport=objects)
-    robot_b.datagram_received(b"\x93\x01\x02\x03", 1)  # bytes fed in by hand
+    tap = Tap(objects)
+    await start_robot(1, a, transport=tap)
+    robot_b = await start_robot(2, b, transport=tap)
+    tap.deliver(2, b"\x93\x01\x02\x03", 1)  # bytes fed in by hand
     a[0].send(2, Stranger(1))  # over UDP its encoding would fail at the sender
     await settle()
     assert robot_b.dropped == {"decode.malformed": 1, "decode.unknown_type": 1}
@@ -101,10 +103,8 @@ async def test_what_is_not_a_message_of_the_stack_is_dropped_and_counted(
 
 
 async def test_an_object_reaching_a_stopped_robot_is_counted(objects) -> None:
-    async with Robot(2, [Recorder()], messages=STACK_MESSAGES) as receiver:
+    tap = Tap(objects)
+    async with Robot(2, [Recorder()], transport=tap, messages=STACK_MESSAGES) as receiver:
         pass  # started and stopped: what arrives now finds it not running
-    await objects.open(2, receiver)
-    sender = await objects.open(1, receiver)
-    sender.send(2, Note("late", []))  # type: ignore[arg-type]  # an object, as robots pass
-    await settle()
+    tap.deliver(2, Note("late", []), 1)  # type: ignore[arg-type]  # an object, as robots pass
     assert receiver.dropped == {"not_running": 1}

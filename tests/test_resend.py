@@ -21,7 +21,6 @@ from cas_async import (
     Message,
     MsgType,
     Robot,
-    RobotId,
     RobotStateError,
     RuleViolation,
     Swarm,
@@ -29,33 +28,11 @@ from cas_async import (
     UnknownRobotError,
     VirtualClock,
 )
-from cas_async.transport._base import DatagramSink, Endpoint
+from cas_async.transport import Codec
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
+from tests.taps import Tap
 
 T = TypeVar("T")
-
-
-class Tap(Transport):
-    """A MemoryTransport that also keeps every datagram each robot received."""
-
-    supports_virtual_time = True
-
-    def __init__(self) -> None:
-        self.inner = MemoryTransport()
-        self.received: dict[RobotId, list[bytes]] = {}
-
-    async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
-        kept = self.received.setdefault(robot_id, [])
-
-        class Recording:
-            def datagram_received(self, data: bytes, sender: RobotId | None = None) -> None:
-                kept.append(data)
-                sink.datagram_received(data, sender)
-
-            def transport_dropped(self, reason: str, detail: str) -> None:
-                sink.transport_dropped(reason, detail)
-
-        return await self.inner.open(robot_id, Recording())
 
 
 def robot(robot_id: int, layers: list[Layer], transport: Transport, clock: VirtualClock) -> Robot:
@@ -154,8 +131,7 @@ def test_a_resent_answered_negotiation_gets_the_same_reply_again() -> None:
             await clock.sleep(1.0)
             sender.resend(2, query)
             await clock.sleep(1.0)
-            codec = robots[0]._codec
-            assert codec is not None
+            codec = Codec.for_stack(1, STACK_MESSAGES)
             replies = [codec.decode(data) for data in tap.received[1]]
         return sender, receiver, robots, replies, query
 

@@ -23,8 +23,10 @@ from cas_async import (
     VirtualClock,
     message,
 )
+from cas_async.transport import Codec
 from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
+from tests.taps import Tap
 
 
 async def test_a_layer_whose_await_is_cancelled_from_outside_fails_the_robot() -> None:
@@ -50,7 +52,7 @@ async def test_another_robot_cannot_answer_an_internal_request(start_robot) -> N
             return None
 
     stack = [Recorder(), Silent()]
-    network = MemoryTransport()
+    network = Tap()
     robot = await start_robot(1, stack, transport=network)
     await start_robot(2, recorders(2), transport=network)
     asking = asyncio.create_task(stack[0].request_down(Query(1), timeout=5))
@@ -58,7 +60,7 @@ async def test_another_robot_cannot_answer_an_internal_request(start_robot) -> N
     (question,) = stack[1].negotiations
     forged = Answer(666, 0)  # robot 2 guesses the id of robot 1's internal request
     forged.msg_id, forged.robot_id, forged.corr_id = 7, 2, question.msg_id
-    robot.datagram_received(robot._codec.encode(forged))
+    network.deliver(1, Codec.for_stack(2, STACK_MESSAGES).encode(forged))
     await settle()
     assert not asking.done()
     assert robot.dropped == {"reply_from_wrong_place": 1}
@@ -198,13 +200,13 @@ def test_impossible_limits_are_refused_at_construction() -> None:
 async def test_a_flood_of_foreign_fingerprints_is_explained_a_few_times_only(
     start_robot, caplog
 ) -> None:
-    robot = await start_robot(1, recorders(1), transport=MemoryTransport())
+    tap = Tap()
+    robot = await start_robot(1, recorders(1), transport=tap)
     for fingerprint in range(1000):
-        robot.datagram_received(msgpack.packb([fingerprint, 1, 1, 1, 2, 0, 0, 0]))
+        tap.deliver(1, msgpack.packb([fingerprint, 1, 1, 1, 2, 0, 0, 0]))
     explained = [r for r in caplog.records if "refusing datagrams" in r.getMessage()]
     assert len(explained) == 16
     assert robot.dropped == {"stack_mismatch": 1000}
-    assert len(robot._reception._mismatches_seen) == 16
     assert len(caplog.records) < 30
 
 

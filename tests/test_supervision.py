@@ -10,8 +10,16 @@ import math
 import pytest
 
 import cas_async
-from cas_async import Layer, LayerError, Message, RestartPolicy, Robot, ScaledClock, VirtualClock
-from cas_async._robot import RobotState
+from cas_async import (
+    Layer,
+    LayerError,
+    Message,
+    RestartPolicy,
+    Robot,
+    RobotState,
+    ScaledClock,
+    VirtualClock,
+)
 from tests.stacks import STACK_MESSAGES, Note
 
 

@@ -8,8 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cas_async._errors import ConfigurationError
-from cas_async._swarm_key import KeyFileWarning, SwarmKey
+from cas_async import ConfigurationError, KeyFileWarning, SwarmKey
 
 SECRET = bytes(range(32))
 HEX = SECRET.hex()

@@ -54,11 +54,12 @@ def test_pending_wakes_are_cancelled_when_the_robot_stops() -> None:
     async def main() -> int:
         ticker = Ticker()
         robot = Robot(1, [ticker], clock=VirtualClock(), messages=STACK_MESSAGES)
+        loop = asyncio.get_running_loop()
+        assert isinstance(loop, cas_async.VirtualTimeLoop)
         async with robot:
             await settle()
-            assert len(ticker._wakes or ()) == 2
-        loop = asyncio.get_running_loop()
-        return sum(1 for handle in loop._scheduled if not handle.cancelled())  # type: ignore[attr-defined]
+            assert len(loop.timer_deadlines()) == 2
+        return len(loop.timer_deadlines())
 
     assert cas_async.run(main(), virtual=True) == 0
 

@@ -1,8 +1,9 @@
 """The Action layer (thesis Fig. 32): the robotic layer, executing what the Task layer asks.
 
-It is the only layer that touches the robot, through a
-:class:`~cas_async.Middleware`: in simulation the kinematics and the Environment,
-on hardware the drivers, without any other layer changing. Every command is an
+It is the only layer that touches the robot, through its
+:class:`~cas_async.Middleware` (motion, perception) and :class:`~cas_async.Hands`
+(buckets): in simulation the kinematics and the Environment, on hardware the
+drivers, without any other layer changing. Every command is an
 internal request (a NEGOTIATION) answered when the action is over, with the
 robot's pose (``CompletionStatus``). It also answers the upper layers' sensing
 queries (``RequestInfo``, ``RequestRobotsInRange``).
@@ -19,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from cas_async import Message, Middleware, SimulationError
+from cas_async import Hands, Message, Middleware, SimulationError
 
 from .base import BrigadeLayer, Params
 from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
@@ -30,23 +31,24 @@ __all__ = ["Action"]
 class Action(BrigadeLayer):
     """Executes moves, rotations and bucket swaps on the robot's middleware."""
 
-    def __init__(self, params: Params, middleware: Middleware) -> None:
+    def __init__(self, params: Params, middleware: Middleware, hands: Hands) -> None:
         super().__init__(params)
         self.middleware = middleware
+        self.hands = hands
 
     def _speed(self) -> float:
         if not self.params.mobile:
             return 0.0
         return self.middleware.speed_profile.speed_at(0.0)
 
-    def _done(self, action: str, bucket: int = -1) -> CompletionStatus:
+    async def _done(self, action: str, bucket: int = -1) -> CompletionStatus:
         """The report of ``action``: the pose, and whether ``bucket`` is held now.
 
         Without a ``bucket``, whether the robot holds any. (A Sink may be handed
         several buckets at once: the report is about the one this action was for.)
         """
         pose = self.middleware.pose()
-        held = self.middleware.items()
+        held = await self.hands.items()
         if bucket < 0 and held:
             bucket = held[0]
         return CompletionStatus(
@@ -86,49 +88,50 @@ class Action(BrigadeLayer):
     async def _execute(self, command: ChangeStatus) -> CompletionStatus | None:
         status = command.status
         if status == "Where":
-            return self._done(status)
+            return await self._done(status)
         if status == "Rotate":
             here = self.middleware.pose()
             await self.middleware.rotate_to(math.atan2(command.y - here.y, command.x - here.x))
-            return self._done(status)
+            return await self._done(status)
         if status == "Move":
             await self.middleware.move_to(command.x, command.y)
-            return self._done(status)
+            return await self._done(status)
         if status == "Accept":
-            self.middleware.accept_from(command.partner)
-            return self._done(status)
+            await self.hands.accept_from(command.partner)
+            return await self._done(status)
         if status == "Withdraw":
-            self.middleware.refuse_from(command.partner)
-            return self._done(status, command.bucket)
+            await self.hands.refuse_from(command.partner)
+            return await self._done(status, command.bucket)
         if status == "MakeBucket":
-            return self._done(status, self.middleware.create_item())
+            return await self._done(status, await self.hands.create_item())
         if status == "SwapBucket":
             if command.has_bucket:
                 return await self._give(command.bucket, command.partner)
-            return self._take(command.bucket, command.partner)
+            return await self._take(command.bucket, command.partner)
         self.unexpected(command, f"unknown command {status!r}")
         return None
 
     async def _give(self, bucket: int, partner: int) -> CompletionStatus:
         await self.clock.sleep(self.params.handover_time)
         try:
-            self.middleware.hand_over(bucket, partner)  # the one atomic moment of the exchange
+            await self.hands.hand_over(bucket, partner)  # the one atomic moment of the exchange
         except SimulationError as refused:  # the partner withdrew its hands: no exchange
             self.log.info("hand-over refused: %s", refused)
-            return self._done("SwapBucket", bucket)
+            return await self._done("SwapBucket", bucket)
         if self.params.mobile:
             self.middleware.speed_profile = self.params.empty()
-        return self._done("SwapBucket", bucket)
+        return await self._done("SwapBucket", bucket)
 
-    def _take(self, bucket: int, giver: int) -> CompletionStatus:
-        if bucket not in self.middleware.items():
+    async def _take(self, bucket: int, giver: int) -> CompletionStatus:
+        held = await self.hands.items()
+        if bucket not in held:
             raise RuntimeError(
                 f"robot {self.robot_id}: robot {giver} reported handing over bucket {bucket}, "
-                f"but this robot holds {list(self.middleware.items())}"
+                f"but this robot holds {list(held)}"
             )
-        self.middleware.refuse_from(giver)  # hands back in: nothing more from this giver
+        await self.hands.refuse_from(giver)  # hands back in: nothing more from this giver
         if self.kind is Kind.SINK:
-            self.middleware.retire_item(bucket)
+            await self.hands.retire_item(bucket)
         elif self.params.mobile:
             self.middleware.speed_profile = self.params.carrying()
-        return self._done("SwapBucket", bucket)
+        return await self._done("SwapBucket", bucket)

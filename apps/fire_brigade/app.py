@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
-from cas_async import Layer, Pose, Robot, SimulatedMiddleware
+from cas_async import Layer, Pose, Robot
 from cas_async.scenario import Mission, ScenarioError, SimulationSetup
+from cas_async.sim import SimulatedHands, SimulatedMiddleware
 
 from . import messages
 from .action import Action
@@ -148,14 +149,14 @@ class FireBrigade:
                 setup.clock,
                 turn_rate=fleet.turn_rate,
                 speed_profile=params.empty(),
-                reach=_REACH,
             )
+            hands = SimulatedHands(setup.environment, robot_id, setup.clock, reach=_REACH)
             layers: list[Layer] = [
                 Goal(params),
                 strategy(params),
                 GroupActivity(params),
                 Task(params),
-                Action(params, middleware),
+                Action(params, middleware, hands),
             ]
             robots.append(
                 Robot(

@@ -17,7 +17,8 @@ from __future__ import annotations
 import math
 from typing import TypeAlias
 
-from cas_async import SimulationError, SpeedProfile, closing_time
+from cas_async import SimulationError, SpeedProfile
+from cas_async.sim import closing_time
 
 __all__ = [
     "Point",

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..sim._errors import SimulationError
+from .._errors import SimulationError
 from ._report import _atomic_text_file
 
 __all__ = ["Trace"]

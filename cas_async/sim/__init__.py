@@ -1,45 +1,38 @@
-"""A generic 2-D mobile-robot simulation kit: kinematics, an Environment, a middleware.
+"""The simulation kit: kinematics, an Environment, and the simulated middleware and hands.
 
-* :mod:`.pose`, :mod:`.phases`, :mod:`.profiles`, :mod:`.kinematics`: closed-form motion of a
-  robot that rotates in place and drives straight under a pluggable speed profile.
-* :mod:`.environment`: every simulated robot's motion, exact at any instant,
-  with vectorised range queries.
-* :mod:`.items`: items robots carry, and a ledger that checks none is lost or
-  duplicated.
-* :mod:`.middleware`: the seam between robotic layers and the robot, with its
-  simulated implementation.
+For simulation authors (a scenario's application builds its robots with these):
+
+* :class:`Environment`: every simulated robot's motion, exact at any instant,
+  with vectorised range queries, and the :class:`ItemLedger` of the items robots
+  hold, which refuses any loss or duplication;
+* :class:`SimulatedMiddleware` and :class:`SimulatedHands`: the robot's
+  :class:`~cas_async.Middleware` and :class:`~cas_async.Hands` in an Environment;
+* :class:`Motion`, :class:`Phase`, :func:`closing_time`: the closed-form motion
+  of a robot that rotates in place and drives straight under a speed profile.
 
 Nothing here knows any application: profiles describe physics, and the
-application decides when to change them.
+application decides when to change them. The vocabulary robotic layers share
+with hardware (poses, positions, speed profiles, the middleware interface) is
+in the core, ``cas_async``.
 """
 
+from .._phases import Phase, check_phases
+from .._pose import normalize_angle
+from .._profiles import closing_time
 from ._environment import Environment
-from ._errors import SimulationError
-from ._items import ItemEvent, ItemEventKind, ItemId, ItemLedger
+from ._items import ItemEvent, ItemEventKind, ItemLedger
 from ._kinematics import Motion, check_turn_rate
-from ._middleware import Middleware, SimulatedMiddleware
-from ._phases import Phase, check_phases
-from ._pose import Pose, normalize_angle
-from ._positions import Positions
-from ._profiles import ConstantSpeed, Decelerating, PiecewiseSpeed, SpeedProfile, closing_time
+from ._middleware import SimulatedHands, SimulatedMiddleware
 
 __all__ = [
-    "ConstantSpeed",
-    "Decelerating",
     "Environment",
     "ItemEvent",
     "ItemEventKind",
-    "ItemId",
     "ItemLedger",
-    "Middleware",
     "Motion",
     "Phase",
-    "PiecewiseSpeed",
-    "Pose",
-    "Positions",
+    "SimulatedHands",
     "SimulatedMiddleware",
-    "SimulationError",
-    "SpeedProfile",
     "check_phases",
     "check_turn_rate",
     "closing_time",

@@ -27,14 +27,13 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from .._errors import ConfigurationError, UnknownRobotError
-from .._types import RobotId
-from ._errors import SimulationError
+from .._errors import ConfigurationError, SimulationError, UnknownRobotError
+from .._pose import Pose
+from .._positions import Positions
+from .._types import ItemId, RobotId
 from ._grid import CellGrid
-from ._items import ItemId, ItemLedger
+from ._items import ItemLedger
 from ._kinematics import Motion
-from ._pose import Pose
-from ._positions import Positions
 from ._segments import SegmentTable
 
 __all__ = ["Environment"]

@@ -13,15 +13,12 @@ import enum
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import TypeAlias, overload
+from typing import overload
 
-from .._types import RobotId
-from ._errors import SimulationError
+from .._errors import SimulationError
+from .._types import ItemId, RobotId
 
-__all__ = ["ItemEvent", "ItemEventKind", "ItemId", "ItemLedger"]
-
-ItemId: TypeAlias = int
-"""Identifies an item within one ledger: 1, 2, 3, ... in order of creation."""
+__all__ = ["ItemEvent", "ItemEventKind", "ItemLedger"]
 
 
 class ItemEventKind(enum.Enum):

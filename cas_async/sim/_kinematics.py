@@ -17,10 +17,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._errors import SimulationError
-from ._phases import check_phases
-from ._pose import Pose, normalize_angle
-from ._profiles import SpeedProfile
+from .._errors import SimulationError
+from .._phases import check_phases
+from .._pose import Pose, normalize_angle
+from .._profiles import SpeedProfile
 
 __all__ = ["Motion", "check_turn_rate"]
 

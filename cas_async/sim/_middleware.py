@@ -1,13 +1,9 @@
-"""The middleware: what a robotic layer asks of its robot, simulated or real.
+"""The simulated middleware and hands: kinematics and items in an :class:`Environment`.
 
-The thesis puts a (pseudo-)middleware between the robotic layers and the robot
-(§3.1, Fig. 27): in operation it drives hardware, in simulation it computes
-kinematics and consults the Environment. :class:`Middleware` is that seam. A
-robotic layer holds one and calls ``move_to``, ``rotate_to``, ``pose`` and
-``robots_within``, and carries items with ``items``, ``create_item``,
-``hand_over`` and ``retire_item``; :class:`SimulatedMiddleware` implements them with
-closed-form kinematics, an :class:`~cas_async.sim._environment.Environment` and
-the robot's clock, and a hardware implementation plugs in at the same place
+:class:`SimulatedMiddleware` implements :class:`~cas_async.Middleware` with
+closed-form kinematics, an :class:`~cas_async.sim.Environment` and the robot's
+clock; :class:`SimulatedHands` implements :class:`~cas_async.Hands` with the
+Environment's item ledger. A hardware implementation plugs in at the same place
 without changing any layer.
 
 The speed profile is how an application shapes motion without the middleware
@@ -21,100 +17,20 @@ from __future__ import annotations
 
 import contextlib
 import math
-from abc import ABC, abstractmethod
 from typing import final
 
 from .._clock import Clock
-from .._errors import RobotStateError, UnknownRobotError
-from .._types import RobotId
+from .._errors import RobotStateError, SimulationError, UnknownRobotError
+from .._middleware import Hands, Middleware
+from .._phases import check_phases
+from .._pose import Pose
+from .._positions import Positions
+from .._profiles import SpeedProfile
+from .._types import ItemId, RobotId
 from ._environment import Environment
-from ._errors import SimulationError
-from ._items import ItemId
 from ._kinematics import Motion, check_turn_rate
-from ._phases import check_phases
-from ._pose import Pose
-from ._positions import Positions
-from ._profiles import SpeedProfile
 
-__all__ = ["Middleware", "SimulatedMiddleware"]
-
-
-class Middleware(ABC):
-    """One robot's motion and perception, as a robotic layer sees them.
-
-    Moves are exclusive: a second move or rotation while one is under way raises
-    :class:`~cas_async._errors.RobotStateError`. Cancelling a move stops the robot
-    where it is at that instant and re-raises the cancellation.
-
-    The item methods are instantaneous and may be called during a move: a
-    gripper that needs time to grasp or release is waited for by the robotic
-    layer, on its own clock, around the call.
-    """
-
-    @property
-    @abstractmethod
-    def robot_id(self) -> RobotId:
-        """The robot this middleware drives."""
-
-    @property
-    @abstractmethod
-    def speed_profile(self) -> SpeedProfile:
-        """The profile the next translation follows (aged by past translations)."""
-
-    @speed_profile.setter
-    @abstractmethod
-    def speed_profile(self, profile: SpeedProfile) -> None:
-        """Replaces the profile; a move under way keeps the one it started with."""
-
-    @abstractmethod
-    def pose(self) -> Pose:
-        """The robot's pose now (during a move too)."""
-
-    @abstractmethod
-    async def move_to(self, x: float, y: float) -> Pose:
-        """Turns to face ``(x, y)``, drives there, and returns the pose reached."""
-
-    @abstractmethod
-    async def rotate_to(self, heading: float) -> Pose:
-        """Turns in place to ``heading`` (radians, see :mod:`.pose`), returns the pose."""
-
-    @abstractmethod
-    async def robots_within(self, radius: float) -> Positions:
-        """The other robots within ``radius`` now, nearest first."""
-
-    @abstractmethod
-    def items(self) -> tuple[ItemId, ...]:
-        """The items the robot holds now, in the order it received them."""
-
-    @abstractmethod
-    def create_item(self) -> ItemId:
-        """Creates an item in the robot's hands now and returns its id."""
-
-    @abstractmethod
-    def hand_over(self, item: ItemId, receiver: RobotId) -> None:
-        """Gives ``item``, held by this robot, to robot ``receiver``, now.
-
-        This is the one atomic moment an item changes hands: before the call
-        this robot holds it, after a successful call ``receiver`` does, and a
-        failed call leaves it where it was. The robots must be within reach.
-        """
-
-    @abstractmethod
-    def retire_item(self, item: ItemId) -> None:
-        """Retires ``item``, held by this robot, now: nobody holds it any more."""
-
-    def accept_from(self, giver: RobotId) -> None:
-        """Holds out this robot's hands to ``giver``: from now on it takes items from it.
-
-        Until this robot first calls ``accept_from`` or ``refuse_from``, it takes
-        items from anyone. Optional for a middleware (the default raises
-        ``NotImplementedError``).
-        """
-        raise NotImplementedError(f"{type(self).__name__} does not support accept_from")
-
-    def refuse_from(self, giver: RobotId) -> None:
-        """Withdraws this robot's hands from ``giver``: no hand-over from it can happen now."""
-        raise NotImplementedError(f"{type(self).__name__} does not support refuse_from")
+__all__ = ["SimulatedHands", "SimulatedMiddleware"]
 
 
 @final
@@ -133,13 +49,10 @@ class SimulatedMiddleware(Middleware):
         clock: the robot's clock (the layer's ``self.clock``).
         turn_rate: radians per second for rotations (``inf``: instant).
         speed_profile: the profile of the first translation.
-        reach: the largest distance from this robot at which it can hand an item
-            over (the default allows only robots at the same spot, up to rounding).
 
     Raises:
         UnknownRobotError: ``robot_id`` is not in ``environment``.
-        SimulationError: ``turn_rate`` is not positive, the profile is invalid,
-            or ``reach`` is negative or not finite.
+        SimulationError: ``turn_rate`` is not positive, or the profile is invalid.
     """
 
     def __init__(
@@ -150,16 +63,12 @@ class SimulatedMiddleware(Middleware):
         *,
         turn_rate: float,
         speed_profile: SpeedProfile,
-        reach: float = 1e-6,
     ) -> None:
         environment.is_mobile(robot_id)  # raises UnknownRobotError early
-        if not (math.isfinite(reach) and reach >= 0):
-            raise SimulationError(f"reach must be a finite number >= 0, got {reach!r}")
         self._environment = environment
         self._robot_id = robot_id
         self._clock = clock
         self._turn_rate = check_turn_rate(turn_rate)
-        self._reach = float(reach)
         self.speed_profile = speed_profile
         self._busy = False
         # The instant the last action settled. A timer may wake a hair before its
@@ -175,11 +84,6 @@ class SimulatedMiddleware(Middleware):
     def turn_rate(self) -> float:
         """Radians per second of every rotation."""
         return self._turn_rate
-
-    @property
-    def reach(self) -> float:
-        """The largest distance at which this robot hands an item over."""
-        return self._reach
 
     @property
     def speed_profile(self) -> SpeedProfile:
@@ -229,44 +133,6 @@ class SimulatedMiddleware(Middleware):
         """The other robots within ``radius`` (inclusive) at ``clock.now()``, nearest first."""
         return self._environment.within(self._robot_id, radius, self._clock.now())
 
-    def items(self) -> tuple[ItemId, ...]:
-        """The items the robot holds now, in the order it received them."""
-        return self._environment.items.held_by(self._robot_id)
-
-    def accept_from(self, giver: RobotId) -> None:
-        """Takes items from ``giver`` from now on (see :meth:`Environment.accept_from`)."""
-        self._environment.accept_from(self._robot_id, giver)
-
-    def refuse_from(self, giver: RobotId) -> None:
-        """Takes no more items from ``giver`` (see :meth:`Environment.refuse_from`)."""
-        self._environment.refuse_from(self._robot_id, giver)
-
-    def create_item(self) -> ItemId:
-        """Creates an item in the robot's hands at ``clock.now()`` and returns its id."""
-        return self._environment.create_item(self._robot_id, self._clock.now())
-
-    def hand_over(self, item: ItemId, receiver: RobotId) -> None:
-        """Gives ``item`` to ``receiver`` at ``clock.now()``: the one moment it changes hands.
-
-        Allowed during a move too: the positions are exact at that instant.
-
-        Raises:
-            UnknownRobotError: ``receiver`` is not in the environment.
-            SimulationError: the robots are farther apart than :attr:`reach`, this
-                robot does not hold ``item``, or ``receiver`` is this robot.
-        """
-        self._environment.hand_over(
-            item, self._robot_id, receiver, self._clock.now(), reach=self._reach
-        )
-
-    def retire_item(self, item: ItemId) -> None:
-        """Retires ``item`` at ``clock.now()``.
-
-        Raises:
-            SimulationError: this robot does not hold ``item``.
-        """
-        self._environment.retire_item(item, self._robot_id, self._clock.now())
-
     async def _perform(self, motion: Motion, start: float) -> Pose:
         if self._busy:
             raise RobotStateError(
@@ -307,5 +173,90 @@ class SimulatedMiddleware(Middleware):
     def __repr__(self) -> str:
         return (
             f"SimulatedMiddleware(robot_id={self._robot_id}, turn_rate={self._turn_rate:g}, "
-            f"reach={self._reach:g}, speed_profile={self._profile!r})"
+            f"speed_profile={self._profile!r})"
         )
+
+
+@final
+class SimulatedHands(Hands):
+    """A robot's hands in an :class:`Environment`: its items, in the Environment's ledger.
+
+    Every operation happens at ``clock.now()`` and completes before it returns
+    (nothing is awaited inside), so a hand-over is atomic in the simulation too.
+    A gripper's time to grasp or release is the robotic layer's to wait for, on
+    its clock, around the call.
+
+    Args:
+        environment: the world the robot is in.
+        robot_id: the robot, already added to ``environment``.
+        clock: the robot's clock.
+        reach: the largest distance from this robot at which it can hand an item
+            over (the default allows only robots at the same spot, up to rounding).
+
+    Raises:
+        UnknownRobotError: ``robot_id`` is not in ``environment``.
+        SimulationError: ``reach`` is negative or not finite.
+    """
+
+    def __init__(
+        self, environment: Environment, robot_id: RobotId, clock: Clock, *, reach: float = 1e-6
+    ) -> None:
+        environment.is_mobile(robot_id)  # raises UnknownRobotError early
+        if not (math.isfinite(reach) and reach >= 0):
+            raise SimulationError(f"reach must be a finite number >= 0, got {reach!r}")
+        self._environment = environment
+        self._robot_id = robot_id
+        self._clock = clock
+        self._reach = float(reach)
+
+    @property
+    def robot_id(self) -> RobotId:
+        """The robot these hands belong to."""
+        return self._robot_id
+
+    @property
+    def reach(self) -> float:
+        """The largest distance at which this robot hands an item over."""
+        return self._reach
+
+    async def items(self) -> tuple[ItemId, ...]:
+        """The items the robot holds now, in the order it received them."""
+        return self._environment.items.held_by(self._robot_id)
+
+    async def accept_from(self, giver: RobotId) -> None:
+        """Takes items from ``giver`` from now on (see :meth:`Environment.accept_from`)."""
+        self._environment.accept_from(self._robot_id, giver)
+
+    async def refuse_from(self, giver: RobotId) -> None:
+        """Takes no more items from ``giver`` (see :meth:`Environment.refuse_from`)."""
+        self._environment.refuse_from(self._robot_id, giver)
+
+    async def create_item(self) -> ItemId:
+        """Creates an item in the robot's hands at ``clock.now()`` and returns its id."""
+        return self._environment.create_item(self._robot_id, self._clock.now())
+
+    async def hand_over(self, item: ItemId, receiver: RobotId) -> None:
+        """Gives ``item`` to ``receiver`` at ``clock.now()``: the one moment it changes hands.
+
+        Allowed during a move too: the positions are exact at that instant.
+
+        Raises:
+            UnknownRobotError: ``receiver`` is not in the environment.
+            SimulationError: the robots are farther apart than :attr:`reach`, this
+                robot does not hold ``item``, ``receiver`` is this robot, or its
+                hands are not held out to this robot.
+        """
+        self._environment.hand_over(
+            item, self._robot_id, receiver, self._clock.now(), reach=self._reach
+        )
+
+    async def retire_item(self, item: ItemId) -> None:
+        """Retires ``item`` at ``clock.now()``.
+
+        Raises:
+            SimulationError: this robot does not hold ``item``.
+        """
+        self._environment.retire_item(item, self._robot_id, self._clock.now())
+
+    def __repr__(self) -> str:
+        return f"SimulatedHands(robot_id={self._robot_id}, reach={self._reach:g})"

@@ -6,8 +6,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import cas_async
-from cas_async import Environment
 from cas_async.scenario import RunResult, Trace, load_scenario, run_scenario
+from cas_async.sim import Environment
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "apps" / "fire_brigade" / "scenarios"
 VIRTUAL = ("run.virtual=true", 'run.transport="memory"')

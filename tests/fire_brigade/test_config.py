@@ -17,8 +17,9 @@ from apps.fire_brigade.goal import Goal
 from apps.fire_brigade.group_activity import GroupActivity
 from apps.fire_brigade.messages import Kind
 from apps.fire_brigade.task import Task
-from cas_async import Environment, MemoryTransport, VirtualClock
+from cas_async import MemoryTransport, VirtualClock
 from cas_async.scenario import Mission, ScenarioError, SimulationSetup, load_scenario
+from cas_async.sim import Environment
 from tests.fire_brigade.helpers import SCENARIOS
 
 SHIPPED = sorted(path.name for path in SCENARIOS.glob("*.toml"))

@@ -31,20 +31,23 @@ from apps.fire_brigade.task import Task
 from cas_async import (
     ConstantSpeed,
     Decelerating,
-    Environment,
-    ItemEvent,
-    ItemEventKind,
     Layer,
     LayerError,
     MemoryTransport,
     Message,
-    Motion,
     MsgType,
     Pose,
     Robot,
-    SimulatedMiddleware,
     Swarm,
     VirtualClock,
+)
+from cas_async.sim import (
+    Environment,
+    ItemEvent,
+    ItemEventKind,
+    Motion,
+    SimulatedHands,
+    SimulatedMiddleware,
 )
 
 T = TypeVar("T")
@@ -180,12 +183,13 @@ class Brigade:
                 turn_rate=turn_rate,
                 speed_profile=ConstantSpeed(params.speed),
             )
+            hands = SimulatedHands(self.env, spot.robot, self.clock)
             layers = [
                 Goal(params),
                 strategy(params),
                 GroupActivity(params),
                 Task(params),
-                Action(params, middleware),
+                Action(params, middleware, hands),
             ]
             self.robots[spot.robot] = Robot(
                 spot.robot, layers, transport=self.transport, clock=self.clock, messages=MESSAGES

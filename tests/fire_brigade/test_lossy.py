@@ -16,7 +16,7 @@ import pytest
 
 from apps.fire_brigade.messages import ChangeStatus, CompletionStatus
 from apps.fire_brigade.task import Task
-from cas_async import Environment, ItemEvent, ItemEventKind
+from cas_async.sim import Environment, ItemEvent, ItemEventKind
 from tests.fire_brigade.helpers import SCENARIOS, run_checked
 
 # The thesis's scenarios and the smallest scale one (the larger ones would make this slow).

@@ -20,8 +20,9 @@ from apps.fire_brigade.app import FireBrigade
 from apps.fire_brigade.base import Params
 from apps.fire_brigade.config import FireBrigadeConfig, Messaging
 from apps.fire_brigade.messages import Kind
-from cas_async import Environment, MemoryTransport, Message, MsgType, RobotId, VirtualClock
+from cas_async import MemoryTransport, Message, MsgType, RobotId, VirtualClock
 from cas_async.scenario import Mission, ScenarioError, SimulationSetup, load_scenario
+from cas_async.sim import Environment
 from tests.fire_brigade.helpers import SCENARIOS, run_checked
 
 BASE = SCENARIOS / "thesis_5_8_1.toml"

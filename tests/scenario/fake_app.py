@@ -5,8 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from cas_async.scenario._app import Mission, SimulationSetup
-from cas_async.scenario._config import ScenarioError, setting
+from cas_async.scenario import Mission, ScenarioError, SimulationSetup, setting
 
 
 @dataclass(frozen=True)

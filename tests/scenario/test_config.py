@@ -10,8 +10,8 @@ from typing import Any, Literal
 
 import pytest
 
-from cas_async._errors import CasError, ConfigurationError
-from cas_async.scenario._config import ScenarioError, from_toml, setting
+from cas_async import CasError, ConfigurationError
+from cas_async.scenario import ScenarioError, from_toml, setting
 
 
 @dataclass(frozen=True)

@@ -10,15 +10,21 @@ from pathlib import Path
 import pytest
 
 import cas_async
-from cas_async import Layer, Message, Pose, Robot, message
-from cas_async.scenario._app import Mission, SimulationSetup
-from cas_async.scenario._config import ScenarioError, setting
-from cas_async.scenario._loader import FaultsConfig, load_scenario
-from cas_async.scenario._report import summary_table, write_results
-from cas_async.scenario._results import RunResult, RunStatus
-from cas_async.scenario._runner import run_scenario
-from cas_async.sim._environment import Environment
-from cas_async.transport._faulty import Faults
+from cas_async import Faults, Layer, Message, Pose, Robot, message
+from cas_async.scenario import (
+    FaultsConfig,
+    Mission,
+    RunResult,
+    RunStatus,
+    ScenarioError,
+    SimulationSetup,
+    load_scenario,
+    run_scenario,
+    setting,
+    summary_table,
+    write_results,
+)
+from cas_async.sim import Environment
 from tests.scenario.fake_app import FakeApp
 
 MINIMAL = """

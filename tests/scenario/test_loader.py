@@ -8,10 +8,10 @@ from typing import Any
 
 import pytest
 
-from cas_async.scenario._config import ScenarioError
-from cas_async.scenario._loader import (
+from cas_async.scenario import (
     RunConfig,
     Scenario,
+    ScenarioError,
     WorldConfig,
     apply_overrides,
     load_scenario,

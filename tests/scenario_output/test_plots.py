@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import cas_async
-from cas_async.scenario._plots import _at_times, _spread, write_plots
-from cas_async.scenario._trace import Trace
+from cas_async.scenario import Trace, write_plots
+from cas_async.scenario._plots import _at_times, _spread
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 NAMES = ["initial_positions.png", "snapshots_by_exchange.png", "snapshots_by_time.png"]

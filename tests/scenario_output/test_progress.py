@@ -4,7 +4,7 @@ import io
 
 import pytest
 
-from cas_async.scenario._progress import Progress
+from cas_async.scenario import Progress
 
 
 class FakeClock:

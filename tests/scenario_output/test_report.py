@@ -10,8 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cas_async.scenario._report import results_dict, statistics, summary_table, write_results
-from cas_async.scenario._results import RunResult, RunStatus
+from cas_async.scenario import (
+    RunResult,
+    RunStatus,
+    results_dict,
+    statistics,
+    summary_table,
+    write_results,
+)
 
 
 def make_result(**changes: object) -> RunResult:

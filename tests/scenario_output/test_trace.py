@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cas_async.scenario._trace import Trace
-from cas_async.sim._errors import SimulationError
+from cas_async import SimulationError
+from cas_async.scenario import Trace
 
 
 def xy_of(*points: tuple[float, float]) -> np.ndarray:

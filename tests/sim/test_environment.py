@@ -9,18 +9,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cas_async import ConfigurationError, UnknownRobotError
-from cas_async.sim import (
+from cas_async import (
+    ConfigurationError,
     ConstantSpeed,
     Decelerating,
-    Environment,
-    Motion,
-    Phase,
     PiecewiseSpeed,
     Pose,
     SimulationError,
     SpeedProfile,
+    UnknownRobotError,
 )
+from cas_async.sim import Environment, Motion, Phase
 
 PI = math.pi
 FATIGUE = Decelerating(5.0, 1.0, 1.0)

@@ -7,17 +7,8 @@ from collections.abc import Callable
 
 import pytest
 
-from cas_async import UnknownRobotError
-from cas_async.sim import (
-    ConstantSpeed,
-    Decelerating,
-    Environment,
-    ItemEvent,
-    ItemEventKind,
-    Motion,
-    Pose,
-    SimulationError,
-)
+from cas_async import ConstantSpeed, Decelerating, Pose, SimulationError, UnknownRobotError
+from cas_async.sim import Environment, ItemEvent, ItemEventKind, Motion
 
 PI = math.pi
 

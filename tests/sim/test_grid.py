@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cas_async.sim import ConstantSpeed, Decelerating, Environment, Motion, Pose, Positions
+from cas_async import ConstantSpeed, Decelerating, Pose, Positions
+from cas_async.sim import Environment, Motion
 from cas_async.sim._grid import CellGrid
 from cas_async.sim._segments import SegmentTable
 

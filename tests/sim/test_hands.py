@@ -8,22 +8,22 @@ givers it accepted and has not refused since. A refused hand-over is a
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import pytest
 
-from cas_async import UnknownRobotError, VirtualClock
-from cas_async.sim import (
+from cas_async import (
     ConstantSpeed,
-    Environment,
+    Hands,
     Middleware,
     Pose,
     Positions,
-    SimulatedMiddleware,
     SimulationError,
     SpeedProfile,
+    UnknownRobotError,
+    VirtualClock,
 )
+from cas_async.sim import Environment, SimulatedHands
 from tests.sim.virtual import virtual
 
 REACH = 1.0
@@ -195,51 +195,49 @@ def test_a_removed_robot_is_unknown_to_accept_from(env: Environment) -> None:
         env.refuse_from(3, 2)
 
 
-# -- the middleware -----------------------------------------------------------------------
+# -- the simulated hands -----------------------------------------------------------------
 
 
-def middleware(env: Environment, robot_id: int, clock: VirtualClock) -> SimulatedMiddleware:
-    return SimulatedMiddleware(
-        env, robot_id, clock, turn_rate=math.inf, speed_profile=ConstantSpeed(1), reach=REACH
-    )
+def hands(env: Environment, robot_id: int, clock: VirtualClock) -> SimulatedHands:
+    return SimulatedHands(env, robot_id, clock, reach=REACH)
 
 
-def test_the_middleware_holds_out_and_withdraws_this_robots_hands() -> None:
+def test_the_simulated_hands_hold_out_and_withdraw() -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[object]:
         env.items.subscribe(lambda _: env.items.check())
         env.add_robot(2, Pose(0.5, 0))
         env.add_robot(3, Pose(0, 0.5))
-        giver, keeper, stranger = (middleware(env, r, clock) for r in (1, 2, 3))
+        giver, keeper, stranger = (hands(env, r, clock) for r in (1, 2, 3))
         log: list[object] = []
-        keeper.accept_from(1)
-        item = stranger.create_item()
+        await keeper.accept_from(1)
+        item = await stranger.create_item()
         with pytest.raises(SimulationError, match="robot 2 does not take items from robot 3"):
-            stranger.hand_over(item, 2)
-        log.append(stranger.items())
-        mine = giver.create_item()
-        giver.hand_over(mine, 2)
-        log.append(keeper.items())
-        keeper.refuse_from(1)
-        again = giver.create_item()
+            await stranger.hand_over(item, 2)
+        log.append(await stranger.items())
+        mine = await giver.create_item()
+        await giver.hand_over(mine, 2)
+        log.append(await keeper.items())
+        await keeper.refuse_from(1)
+        again = await giver.create_item()
         with pytest.raises(SimulationError, match=r"it takes them from \[\]"):
-            giver.hand_over(again, 2)
-        log += [giver.items(), keeper.items()]
+            await giver.hand_over(again, 2)
+        log += [await giver.items(), await keeper.items()]
         return log
 
     assert virtual(main) == [(1,), (2,), (3,), (2,)]
 
 
-def test_the_middleware_refuses_unknown_givers() -> None:
+def test_the_simulated_hands_refuse_unknown_givers() -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
-        robot = middleware(env, 1, clock)
+        robot = hands(env, 1, clock)
         with pytest.raises(UnknownRobotError, match="robot 9 is not in the environment"):
-            robot.accept_from(9)
+            await robot.accept_from(9)
 
     virtual(main)
 
 
 class Hardware(Middleware):
-    """A middleware that implements only what is required: no hands to hold out."""
+    """A hardware robot's middleware: motion and perception only, no hands, no simulator."""
 
     @property
     def robot_id(self) -> int:
@@ -265,23 +263,24 @@ class Hardware(Middleware):
     async def robots_within(self, radius: float) -> Positions:
         raise NotImplementedError
 
-    def items(self) -> tuple[int, ...]:
-        return ()
 
-    def create_item(self) -> int:
-        return 1
-
-    def hand_over(self, item: int, receiver: int) -> None:
-        pass
-
-    def retire_item(self, item: int) -> None:
-        pass
-
-
-def test_hands_are_optional_for_a_middleware() -> None:
-    assert {"accept_from", "refuse_from"}.isdisjoint(Middleware.__abstractmethods__)
+def test_a_middleware_needs_no_hands() -> None:
     robot = Hardware()
-    with pytest.raises(NotImplementedError, match="Hardware does not support accept_from"):
-        robot.accept_from(2)
-    with pytest.raises(NotImplementedError, match="Hardware does not support refuse_from"):
-        robot.refuse_from(2)
+    assert not hasattr(robot, "hand_over")
+    assert isinstance(robot, Middleware)
+    assert not isinstance(robot, Hands)
+
+
+def test_the_middleware_interface_does_not_need_the_simulator() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, cas_async; "
+        "from cas_async import Middleware, Hands, Pose, Positions, ConstantSpeed; "
+        "print(sorted(m for m in sys.modules if m.startswith('cas_async.sim')))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
+    ).stdout
+    assert out.strip() == "[]"

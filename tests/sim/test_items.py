@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cas_async import CasError
-from cas_async.sim import ItemEvent, ItemEventKind, ItemLedger, SimulationError
+from cas_async import CasError, SimulationError
+from cas_async.sim import ItemEvent, ItemEventKind, ItemLedger
 
 CREATED, TRANSFERRED, RETIRED = (
     ItemEventKind.CREATED,

@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from cas_async.sim import ConstantSpeed, Decelerating, Motion, Pose, SimulationError
+from cas_async import ConstantSpeed, Decelerating, Pose, SimulationError
+from cas_async.sim import Motion
 
 PI = math.pi
 FATIGUE = Decelerating(5.0, 1.0, 1.0)

@@ -10,17 +10,18 @@ from typing import Any
 import pytest
 
 import cas_async
-from cas_async import RobotStateError, ScaledClock, UnknownRobotError, VirtualClock
-from cas_async.sim import (
+from cas_async import (
     ConstantSpeed,
     Decelerating,
-    Environment,
     Middleware,
-    Motion,
     Pose,
-    SimulatedMiddleware,
+    RobotStateError,
+    ScaledClock,
     SimulationError,
+    UnknownRobotError,
+    VirtualClock,
 )
+from cas_async.sim import Environment, Motion, SimulatedMiddleware
 from tests.sim.virtual import virtual
 
 PI = math.pi

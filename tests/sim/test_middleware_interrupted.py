@@ -8,8 +8,8 @@ import math
 import pytest
 
 import cas_async
-from cas_async import Clock, VirtualClock
-from cas_async.sim import ConstantSpeed, Decelerating, Environment, Pose, SimulatedMiddleware
+from cas_async import Clock, ConstantSpeed, Decelerating, Pose, VirtualClock
+from cas_async.sim import Environment, SimulatedMiddleware
 from tests.sim.virtual import virtual
 
 PI = math.pi

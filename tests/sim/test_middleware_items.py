@@ -1,4 +1,4 @@
-"""Items through the simulated middleware, on virtual time: hand-overs between robots."""
+"""Items through the simulated hands, on virtual time: hand-overs between robots."""
 
 from __future__ import annotations
 
@@ -7,47 +7,51 @@ import math
 
 import pytest
 
-from cas_async import UnknownRobotError, VirtualClock
-from cas_async.sim import (
+from cas_async import (
     ConstantSpeed,
-    Environment,
-    ItemEventKind,
+    Hands,
     Middleware,
     Pose,
-    SimulatedMiddleware,
     SimulationError,
+    UnknownRobotError,
+    VirtualClock,
 )
+from cas_async.sim import Environment, ItemEventKind, SimulatedHands, SimulatedMiddleware
 from tests.sim.virtual import virtual
 
 
-def middleware(
-    env: Environment, robot_id: int, clock: VirtualClock, **kwargs: float
-) -> SimulatedMiddleware:
+def middleware(env: Environment, robot_id: int, clock: VirtualClock) -> SimulatedMiddleware:
     """A robot that turns instantly and drives at 1 m/s."""
     return SimulatedMiddleware(
-        env, robot_id, clock, turn_rate=math.inf, speed_profile=ConstantSpeed(1), **kwargs
+        env, robot_id, clock, turn_rate=math.inf, speed_profile=ConstantSpeed(1)
     )
 
 
-def test_the_middleware_declares_the_item_methods() -> None:
-    assert {"items", "create_item", "hand_over", "retire_item"} <= Middleware.__abstractmethods__
+def hands(env: Environment, robot_id: int, clock: VirtualClock, **kwargs: float) -> SimulatedHands:
+    return SimulatedHands(env, robot_id, clock, **kwargs)
+
+
+def test_hands_declare_every_item_operation_and_the_middleware_none() -> None:
+    operations = {"items", "create_item", "hand_over", "retire_item", "accept_from", "refuse_from"}
+    assert operations <= Hands.__abstractmethods__
+    assert operations.isdisjoint(Middleware.__abstractmethods__)
 
 
 def test_a_robot_carries_an_item_to_another_and_hands_it_over() -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[object]:
         env.items.subscribe(lambda _: env.items.check())
         env.add_robot(2, Pose(5, 0))
-        carrier, keeper = middleware(env, 1, clock), middleware(env, 2, clock)
-        item = carrier.create_item()
-        log: list[object] = [carrier.items(), keeper.items()]
+        carrier, keeper = hands(env, 1, clock), hands(env, 2, clock)
+        item = await carrier.create_item()
+        log: list[object] = [await carrier.items(), await keeper.items()]
         with pytest.raises(SimulationError, match=r"they are 5\.0 apart"):
-            carrier.hand_over(item, 2)
-        await carrier.move_to(5, 0)
-        carrier.hand_over(item, 2)
-        log += [clock.now(), carrier.items(), keeper.items()]
-        await keeper.move_to(5, 2)
-        keeper.retire_item(item)
-        log += [keeper.items(), [(e.t, e.kind, e.robot) for e in env.items.history(item)]]
+            await carrier.hand_over(item, 2)
+        await middleware(env, 1, clock).move_to(5, 0)
+        await carrier.hand_over(item, 2)
+        log += [clock.now(), await carrier.items(), await keeper.items()]
+        await middleware(env, 2, clock).move_to(5, 2)
+        await keeper.retire_item(item)
+        log += [await keeper.items(), [(e.t, e.kind, e.robot) for e in env.items.history(item)]]
         return log
 
     assert virtual(main) == [
@@ -69,17 +73,17 @@ def test_a_hand_over_happens_mid_move_where_the_robots_are_then() -> None:
     async def main(env: Environment, clock: VirtualClock) -> tuple[float, float, tuple[int, ...]]:
         env.add_robot(2, Pose(10, 0))
         walker = middleware(env, 1, clock)
-        keeper = middleware(env, 2, clock, reach=0.5)
-        item = keeper.create_item()
+        keeper = hands(env, 2, clock, reach=0.5)
+        item = await keeper.create_item()
         move = asyncio.create_task(walker.move_to(20, 0))  # passes robot 2 at t = 10
         await clock.sleep_until(9.0)
         with pytest.raises(SimulationError, match=r"beyond the reach of 0\.5"):
-            keeper.hand_over(item, 1)  # 1 m apart
+            await keeper.hand_over(item, 1)  # 1 m apart
         await clock.sleep_until(9.5)
-        keeper.hand_over(item, 1)  # exactly 0.5 m apart: within reach
+        await keeper.hand_over(item, 1)  # exactly 0.5 m apart: within reach
         moved_on = walker.pose().x
         await move
-        return clock.now(), moved_on, walker.items()
+        return clock.now(), moved_on, await hands(env, 1, clock).items()
 
     assert virtual(main) == (20.0, 9.5, (1,))
 
@@ -87,13 +91,13 @@ def test_a_hand_over_happens_mid_move_where_the_robots_are_then() -> None:
 def test_items_are_listed_in_the_order_received() -> None:
     async def main(env: Environment, clock: VirtualClock) -> tuple[int, ...]:
         env.add_robot(2, Pose(0, 0))
-        me, other = middleware(env, 1, clock), middleware(env, 2, clock)
-        first, second = other.create_item(), me.create_item()
+        me, other = hands(env, 1, clock), hands(env, 2, clock)
+        first, second = await other.create_item(), await me.create_item()
         await clock.sleep(1.0)
-        other.hand_over(first, 1)
-        third = me.create_item()
+        await other.hand_over(first, 1)
+        third = await me.create_item()
         assert (first, second, third) == (1, 2, 3)
-        return me.items()
+        return await me.items()
 
     assert virtual(main) == (2, 1, 3)
 
@@ -101,17 +105,17 @@ def test_items_are_listed_in_the_order_received() -> None:
 def test_refused_item_calls_leave_everything_in_place() -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
         env.add_robot(2, Pose(0, 0))
-        me, other = middleware(env, 1, clock), middleware(env, 2, clock)
-        item = me.create_item()
+        me, other = hands(env, 1, clock), hands(env, 2, clock)
+        item = await me.create_item()
         with pytest.raises(UnknownRobotError, match="robot 7 is not in the environment"):
-            me.hand_over(item, 7)
+            await me.hand_over(item, 7)
         with pytest.raises(SimulationError, match="robot 2 does not hold it"):
-            other.hand_over(item, 1)
+            await other.hand_over(item, 1)
         with pytest.raises(SimulationError, match="robot 2 does not hold it"):
-            other.retire_item(item)
+            await other.retire_item(item)
         with pytest.raises(SimulationError, match="cannot hand an item to itself"):
-            me.hand_over(item, 1)
-        assert me.items() == (item,)
+            await me.hand_over(item, 1)
+        assert await me.items() == (item,)
         assert env.items.transfers == env.items.retired == 0
 
     virtual(main)
@@ -126,13 +130,13 @@ def test_reach_must_be_finite_and_not_negative(reach: float) -> None:
     env = Environment()
     env.add_robot(1, Pose(0, 0))
     with pytest.raises(SimulationError, match=r"reach must be a finite number >= 0, got"):
-        middleware(env, 1, VirtualClock(), reach=reach)
+        hands(env, 1, VirtualClock(), reach=reach)
 
 
 def test_reach_defaults_to_the_same_spot_and_shows_in_repr() -> None:
     env = Environment()
     env.add_robot(1, Pose(0, 0))
-    assert middleware(env, 1, VirtualClock()).reach == 1e-6
-    zero = middleware(env, 1, VirtualClock(), reach=0)
+    assert hands(env, 1, VirtualClock()).reach == 1e-6
+    zero = hands(env, 1, VirtualClock(), reach=0)
     assert zero.reach == 0.0
-    assert "reach=0," in repr(zero)
+    assert "reach=0)" in repr(zero)

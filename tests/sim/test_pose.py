@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from cas_async.sim import Pose, SimulationError, normalize_angle
+from cas_async import Pose, SimulationError
+from cas_async.sim import normalize_angle
 
 PI = math.pi
 

@@ -8,16 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from cas_async.sim import (
-    ConstantSpeed,
-    Decelerating,
-    Phase,
-    PiecewiseSpeed,
-    SimulationError,
-    SpeedProfile,
-    check_phases,
-    closing_time,
-)
+from cas_async import ConstantSpeed, Decelerating, PiecewiseSpeed, SimulationError, SpeedProfile
+from cas_async.sim import Phase, check_phases, closing_time
 
 INF = math.inf
 

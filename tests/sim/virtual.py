@@ -6,8 +6,8 @@ from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar
 
 import cas_async
-from cas_async import VirtualClock
-from cas_async.sim import Environment, Pose
+from cas_async import Pose, VirtualClock
+from cas_async.sim import Environment
 
 T = TypeVar("T")
 

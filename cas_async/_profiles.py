@@ -22,7 +22,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ._errors import SimulationError
-from ._phases import Phase, _locate, _solve, _starts, check_phases
+from ._phases import Phase, check_phases, locate, phase_starts, solve
 
 __all__ = [
     "ConstantSpeed",
@@ -51,13 +51,13 @@ def closing_time(distance: float, profiles: Iterable[SpeedProfile]) -> float:
         SimulationError: ``distance`` is negative or not finite, or no profile.
     """
     _check_time("distance", distance)
-    tables = [_starts(profile.phases()) for profile in profiles]
+    tables = [phase_starts(profile.phases()) for profile in profiles]
     if not tables:
         raise SimulationError("closing_time needs at least one speed profile")
     bounds = sorted({start for table in tables for start, _, _ in table})
     for index, begin in enumerate(bounds):
         end = bounds[index + 1] if index + 1 < len(bounds) else math.inf
-        current = [table[_locate(table, begin)] for table in tables]
+        current = [table[locate(table, begin)] for table in tables]
         covered = sum(d0 + phase.distance(begin - t0) for t0, d0, phase in current)
         if end < math.inf:
             reach = sum(d0 + phase.distance(end - t0) for t0, d0, phase in current)
@@ -65,7 +65,7 @@ def closing_time(distance: float, profiles: Iterable[SpeedProfile]) -> float:
                 continue
         speed = sum(phase.speed_at(begin - t0) for t0, _, phase in current)
         acceleration = sum(phase.acceleration for _, _, phase in current)
-        return begin + min(_solve(speed, acceleration, distance - covered), end - begin)
+        return begin + min(solve(speed, acceleration, distance - covered), end - begin)
     raise AssertionError("unreachable: the last interval is an unbounded cruise")
 
 
@@ -85,15 +85,15 @@ class SpeedProfile(ABC):
     def speed_at(self, t: float) -> float:
         """Speed ``t >= 0`` seconds after the reference instant."""
         _check_time("t", t)
-        table = _starts(self.phases())
-        start, _, phase = table[_locate(table, t)]
+        table = phase_starts(self.phases())
+        start, _, phase = table[locate(table, t)]
         return phase.speed_at(t - start)
 
     def distance(self, t: float) -> float:
         """Distance covered between the reference instant and ``t >= 0``."""
         _check_time("t", t)
-        table = _starts(self.phases())
-        start, covered, phase = table[_locate(table, t)]
+        table = phase_starts(self.phases())
+        start, covered, phase = table[locate(table, t)]
         return covered + phase.distance(t - start)
 
     def time_for(self, distance: float) -> float:
@@ -106,8 +106,8 @@ class SpeedProfile(ABC):
         if dt == 0:
             return self
         phases = self.phases()
-        table = _starts(phases)
-        index = _locate(table, dt)
+        table = phase_starts(phases)
+        index = locate(table, dt)
         start, _, phase = table[index]
         into = dt - start
         first = Phase(phase.duration - into, phase.speed_at(into), phase.acceleration)

@@ -2,8 +2,8 @@
 
 Every :class:`~cas_async.sim._profiles.SpeedProfile` is a sequence of phases, and
 within one phase distance is a quadratic in time (thesis equation 2), so both
-distance and its inverse have closed forms. The private helpers here are shared
-by the profiles and by the vectorised segment table.
+distance and its inverse have closed forms. ``phase_starts``, ``locate`` and
+``solve`` are shared by the profiles and by the vectorised segment table.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Final
 
 from ._errors import SimulationError
 
-__all__ = ["Phase", "check_phases"]
+__all__ = ["Phase", "check_phases", "locate", "phase_starts", "solve"]
 
 # A ramp may end a hair below zero speed through rounding of its duration.
 _SPEED_SLACK: Final = 1e-9
@@ -78,7 +78,7 @@ def check_phases(phases: Sequence[Phase]) -> tuple[Phase, ...]:
     return phases
 
 
-def _starts(phases: Sequence[Phase]) -> list[tuple[float, float, Phase]]:
+def phase_starts(phases: Sequence[Phase]) -> list[tuple[float, float, Phase]]:
     """Each phase with the time and the distance at which it begins."""
     table: list[tuple[float, float, Phase]] = []
     time = distance = 0.0
@@ -89,7 +89,7 @@ def _starts(phases: Sequence[Phase]) -> list[tuple[float, float, Phase]]:
     return table
 
 
-def _locate(table: Sequence[tuple[float, float, Phase]], t: float) -> int:
+def locate(table: Sequence[tuple[float, float, Phase]], t: float) -> int:
     """Index of the phase in force at ``t``: the last one that starts at or before it."""
     found = 0
     for index, (start, _, _) in enumerate(table):
@@ -99,7 +99,7 @@ def _locate(table: Sequence[tuple[float, float, Phase]], t: float) -> int:
     return found
 
 
-def _solve(speed: float, acceleration: float, distance: float) -> float:
+def solve(speed: float, acceleration: float, distance: float) -> float:
     """Smallest ``tau >= 0`` with ``speed * tau + acceleration * tau**2 / 2 == distance``."""
     if distance <= 0:
         return 0.0

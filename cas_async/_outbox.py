@@ -1,0 +1,267 @@
+"""A robot's outgoing external messages: stamped, encoded, sent and counted in one place.
+
+:class:`Outbox` is the twin of :class:`~cas_async._reception.Reception`: every
+message a layer sends to another robot (``send``, ``resend``, ``broadcast``,
+``reply`` and each attempt of ``request``) leaves the robot here. The outbox owns
+what sending needs: the robot's message ids (internal messages take theirs from
+it too, so ids are unique per robot), the wire codec, the transport endpoint,
+and the replies kept for requests that may be sent again.
+
+Before the robot starts, the outbox holds stand-ins: an endpoint that explains
+that the robot has no transport (:class:`~cas_async.transport._unconnected.Unconnected`)
+and a codec that explains that the robot has not started. Nothing on the send
+path checks for ``None``.
+
+Ownership: once sent, a message belongs to the runtime, which writes its header.
+:func:`owned` gives the object to stamp: the message itself the first time, a
+copy when it was sent before, so a message still travelling never changes.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+from collections.abc import Iterable, Iterator
+from typing import Final, NoReturn, final
+
+from ._counters import LayerCounters
+from ._dedup import ReplyCache
+from ._errors import RobotStateError, UnknownRobotError
+from ._logs import DropLog
+from ._message import Message, MsgType
+from ._types import Address, Level, RobotId
+from ._wire_codec import WireCodec
+from .transport._base import Endpoint
+from .transport._unconnected import Unconnected
+
+__all__ = ["Outbox", "owned"]
+
+_NEGOTIATION: Final = MsgType.NEGOTIATION
+
+
+def owned(msg: Message) -> Message:
+    """The object to stamp and send: ``msg`` the first time, a copy if it was sent before."""
+    return msg if msg.msg_id == 0 else copy.copy(msg)
+
+
+@final
+class _NotStarted:
+    """The wire codec of a robot that has not started: every use says so."""
+
+    passes_objects = False
+
+    def __init__(self, robot_id: RobotId) -> None:
+        self._robot_id = robot_id
+
+    def _refuse(self) -> NoReturn:
+        raise RobotStateError(f"robot {self._robot_id} has not started: it has no codec yet")
+
+    @property
+    def fingerprint(self) -> int:
+        """Raises ``RobotStateError``."""
+        self._refuse()
+
+    def encode(self, msg: Message) -> bytes:
+        """Raises ``RobotStateError``."""
+        self._refuse()
+
+    def decode(self, data: bytes) -> Message:
+        """Raises ``RobotStateError``."""
+        self._refuse()
+
+
+@final
+class Outbox:
+    """Sends one robot's external messages; see the module docs.
+
+    Args:
+        robot_id: the robot whose header every message carries.
+        drops: counts a reply that could not be delivered (its asker left).
+
+    Attributes:
+        replies_resent: kept replies sent again to a repeated request.
+    """
+
+    __slots__ = ("_codec", "_drops", "_endpoint", "_ids", "_replies", "replies_resent", "robot_id")
+
+    def __init__(self, robot_id: RobotId, drops: DropLog) -> None:
+        self.robot_id = robot_id
+        self._drops = drops
+        self._ids: Iterator[int] = itertools.count(1)
+        self._codec: WireCodec = _NotStarted(robot_id)
+        self._endpoint: Endpoint = Unconnected(robot_id)
+        self._replies = ReplyCache()
+        self.replies_resent = 0
+
+    # -- lifecycle ---------------------------------------------------------------------
+
+    def connect(self, codec: WireCodec, endpoint: Endpoint | None, first_id: int) -> None:
+        """Sends with ``codec`` through ``endpoint`` (``None``: none), ids from ``first_id``.
+
+        Ids only grow, also across restarts of a robot: receivers tell a re-sent or
+        duplicated message from a new one by (robot id, message id).
+        """
+        self._codec = codec
+        if endpoint is not None:
+            self._endpoint = endpoint
+        self._ids = itertools.count(first_id)
+
+    def close(self) -> None:
+        """Closes the endpoint; sending then raises ``RobotStateError`` (idempotent)."""
+        self._endpoint.close()
+
+    @property
+    def codec(self) -> WireCodec:
+        """The wire codec (a stand-in that raises before the robot starts)."""
+        return self._codec
+
+    @property
+    def address(self) -> Address:
+        """Where other robots reach this one (``None`` without a transport)."""
+        return self._endpoint.address
+
+    def knows(self, robot_id: RobotId) -> bool:
+        """Whether a message to ``robot_id`` (or a reply to it) can be sent."""
+        return self._endpoint.knows(robot_id)
+
+    # -- stamping ----------------------------------------------------------------------
+
+    def stamp(self, msg: Message, src: Level, dst: Level, corr_id: int = 0) -> None:
+        """Writes the header of a message this robot sends (internal ones too)."""
+        msg.msg_id = next(self._ids)
+        msg.robot_id = self.robot_id
+        msg.src_layer = src
+        msg.dst_layer = dst
+        msg.corr_id = corr_id
+
+    # -- sending -------------------------------------------------------------------------
+
+    def send(self, counters: LayerCounters, level: Level, robot_id: RobotId, msg: Message) -> None:
+        """Stamps, encodes and sends ``msg`` from layer ``level`` to robot ``robot_id``.
+
+        No copy is needed when the message is encoded before this returns; a codec
+        that passes objects sends a copy of one sent before.
+
+        Raises:
+            UnknownRobotError: the transport knows no such robot.
+            EncodeError: the message cannot be encoded.
+            ConfigurationError: the robot has no transport.
+        """
+        codec = self._codec
+        if codec.passes_objects:
+            msg = owned(msg)
+        # The header is stamped inline: this is the hot path of external traffic.
+        msg.msg_id = next(self._ids)
+        msg.robot_id = self.robot_id
+        msg.src_layer = msg.dst_layer = level
+        msg.corr_id = 0
+        self._emit(counters, robot_id, codec.encode(msg), msg.__class__)
+
+    def resend(self, counters: LayerCounters, robot_id: RobotId, msg: Message) -> None:
+        """Sends a message already stamped by this robot again, unchanged (same id)."""
+        self._emit(counters, robot_id, self._codec.encode(msg), msg.__class__)
+
+    def request(self, level: Level, msg: Message) -> bytes:
+        """Stamps ``msg`` (already owned) as a NEGOTIATION from ``level``; returns its datagram.
+
+        Each attempt then goes out through :meth:`transmit`: the same bytes, so the
+        other robot handles the request once however often it is sent.
+        """
+        msg.msg_type = _NEGOTIATION
+        msg.msg_id = next(self._ids)
+        msg.robot_id = self.robot_id
+        msg.src_layer = msg.dst_layer = level
+        msg.corr_id = 0
+        return self._codec.encode(msg)
+
+    def transmit(
+        self, counters: LayerCounters, robot_id: RobotId, data: bytes, kind: type[Message]
+    ) -> None:
+        """Sends an encoded message of class ``kind`` (one attempt of a request)."""
+        self._emit(counters, robot_id, data, kind)
+
+    def broadcast(
+        self,
+        counters: LayerCounters,
+        level: Level,
+        msg: Message,
+        robots: Iterable[RobotId] | None,
+    ) -> list[RobotId]:
+        """Sends one message to several robots (every known one when ``robots`` is ``None``).
+
+        Encoded once; with a codec that passes objects, each receiver gets its own copy.
+        Returns the robots that were not sent to because the transport knows none such.
+        """
+        codec, endpoint = self._codec, self._endpoint
+        if codec.passes_objects:
+            msg = owned(msg)  # receivers may still hold it
+        self.stamp(msg, level, level)
+        data = codec.encode(msg)
+        unknown: list[RobotId] = []
+        sent = 0
+        for robot_id in endpoint.peers() if robots is None else robots:
+            if robot_id == self.robot_id:
+                continue
+            if sent and codec.passes_objects:  # each receiver gets a message of its own
+                data = codec.encode(copy.copy(msg))
+            try:
+                self._emit(counters, robot_id, data, msg.__class__)
+            except UnknownRobotError:
+                unknown.append(robot_id)
+            else:
+                sent += 1
+        return unknown
+
+    def reply(
+        self,
+        counters: LayerCounters,
+        level: Level,
+        asker: RobotId,
+        request_id: int,
+        response: Message,
+    ) -> None:
+        """Answers request ``request_id`` of robot ``asker``, and keeps the reply.
+
+        A repetition of that request (its asker did not get this reply) is answered
+        with the kept bytes (:meth:`resend_reply`). An asker that left meanwhile is
+        a dropped reply (``reply_undeliverable``), not an error.
+        """
+        response = owned(response)  # a copy if sent before (or the request itself)
+        response.msg_id = next(self._ids)  # stamped inline: the hot path of answers
+        response.robot_id = self.robot_id
+        response.src_layer = response.dst_layer = level
+        response.corr_id = request_id
+        data = self._codec.encode(response)
+        self._replies.keep(asker, request_id, data)
+        self._deliver_reply(counters, asker, data, response.__class__)
+
+    def resend_reply(self, asker: RobotId, request_id: int) -> None:
+        """Answers a repeated request with the reply kept for it, if any."""
+        data = self._replies.get(asker, request_id)
+        if data is not None:
+            self.replies_resent += 1
+            self._deliver_reply(None, asker, data, None)
+
+    def _deliver_reply(
+        self,
+        counters: LayerCounters | None,
+        asker: RobotId,
+        data: bytes,
+        kind: type[Message] | None,
+    ) -> None:
+        try:
+            if counters is None or kind is None:  # a kept reply: counted as resent
+                self._endpoint.send(asker, data)
+            else:
+                self._emit(counters, asker, data, kind)
+        except (UnknownRobotError, RobotStateError) as exc:
+            self._drops.drop("reply_undeliverable", str(exc))
+
+    def _emit(
+        self, counters: LayerCounters, robot_id: RobotId, data: bytes, kind: type[Message]
+    ) -> None:
+        """The one place an external message leaves the robot and is counted."""
+        self._endpoint.send(robot_id, data)
+        counters.sent_external += 1
+        by_type = counters.external_by_type
+        by_type[kind] = by_type.get(kind, 0) + 1
