@@ -51,8 +51,7 @@ import msgspec
 from ._errors import DecodeError, StackMismatchError
 from ._fingerprint import describe_fingerprint
 from ._message import HEADER_FIELDS, Message, MessageSpec, MsgType
-from ._schema import FieldType
-from ._schema import _shown as shown
+from ._schema import FieldType, shown
 
 __all__ = ["HEADER_LEN", "Compiled", "compiled", "undispatchable"]
 

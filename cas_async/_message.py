@@ -28,7 +28,7 @@ from collections.abc import Callable, Iterable, Iterator
 from typing import Any, Final, TypeVar, dataclass_transform, overload
 
 from ._errors import DecodeError, MessageDefinitionError
-from ._schema import FieldType, field_type, nested_message_hook
+from ._schema import FieldType, NestedMessages, field_type
 
 __all__ = ["HEADER_FIELDS", "Message", "MessageSpec", "MsgType", "message", "registered", "spec_of"]
 
@@ -121,7 +121,7 @@ def _register(cls: type[Message], name: str | None, type_id: int | None) -> Mess
     except Exception as exc:
         raise MessageDefinitionError(f"{name}: cannot resolve field annotations: {exc}") from exc
     fields = [f for f in dataclasses.fields(cls) if f.name not in HEADER_FIELDS]
-    types_ = tuple(field_type(hints[f.name], f"{name}.{f.name}", Message) for f in fields)
+    types_ = tuple(field_type(hints[f.name], f"{name}.{f.name}", _NESTED) for f in fields)
     spec = MessageSpec(cls, name, tid, tuple(f.name for f in fields), types_)
     found = [e for e in (_by_name.get(name), _by_id.get(tid)) if e is not None]
     for existing in found:  # check both before dropping anything: a refusal changes nothing
@@ -238,5 +238,5 @@ def nested_to_wire(obj: Message) -> tuple[Any, ...]:
     return (spec.type_id, *(getattr(obj, name) for name in spec.field_names))
 
 
-# The schema module builds nested-message fields before this module's registry exists.
-nested_message_hook(_decode_nested)
+_NESTED: Final = NestedMessages(Message, _decode_nested)
+"""How the schema recognises and decodes fields that hold messages."""

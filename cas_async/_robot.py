@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Iterable, Sequence
-from types import TracebackType
 from typing import final
 
 from ._channel import DEFAULT_QUEUE_LIMIT
@@ -218,10 +217,7 @@ class Robot:
         return self
 
     async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object
     ) -> None:
         """EndProcess: cancels the layer tasks, waits for them, closes the endpoint.
 

@@ -7,7 +7,7 @@ import enum
 __all__ = ["RobotState"]
 
 
-class RobotState(enum.Enum):
+class RobotState(enum.StrEnum):
     """Where a robot is in its (one-way) lifecycle.
 
     ``CREATED`` --:meth:`~cas_async.Robot.open`--> ``OPEN``
@@ -20,6 +20,3 @@ class RobotState(enum.Enum):
     OPEN = "open"
     RUNNING = "running"
     STOPPED = "stopped"
-
-    def __str__(self) -> str:
-        return self.value

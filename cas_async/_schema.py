@@ -31,7 +31,7 @@ import numpy as np
 
 from ._errors import DecodeError, MessageDefinitionError
 
-__all__ = ["FieldType", "field_type", "nested_message_hook"]
+__all__ = ["FieldType", "NestedMessages", "field_type", "shown"]
 
 Convert = Callable[[Any, str], Any]
 """Checks a wire value and returns it as the declared type; ``str`` is the path."""
@@ -67,7 +67,7 @@ class FieldType:
     them, or None when only ``convert`` can (see :mod:`cas_async._codegen`)."""
 
 
-def _shown(value: Any) -> str:
+def shown(value: Any) -> str:
     """A short ``repr`` of a value off the wire, for error messages and field paths.
 
     Untrusted values may be 64 KiB strings or arrays nested 1000 deep, whose full
@@ -179,7 +179,7 @@ def _plain(value: Any) -> Any:
             try:
                 converted = _plain(item)
             except _NotPlain as exc:
-                exc.steps.append(f"[{_shown(key)}]")
+                exc.steps.append(f"[{shown(key)}]")
                 raise
             if converted is not item:
                 value[key] = converted  # an existing key: iterating on is safe
@@ -236,7 +236,7 @@ def _mapping(key: FieldType, val: FieldType, name: str) -> Convert:
             raise _fail(path, name, value)
         try:
             return {
-                key.convert(k, f"{path} key"): val.convert(v, f"{path}[{_shown(k)}]")
+                key.convert(k, f"{path} key"): val.convert(v, f"{path}[{shown(k)}]")
                 for k, v in value.items()
             }
         except TypeError:  # a converted key is unhashable (e.g. dict[list[int], ...])
@@ -281,8 +281,8 @@ def _int_enum(kind: type[enum.IntEnum]) -> FieldType:
 def _shown_shape(shape: tuple[Any, ...]) -> str:
     """A refused shape, for its error message (it may hold anything, at any length)."""
     if len(shape) > _MAX_NDIM:
-        return _shown(shape)
-    return f"[{', '.join(map(_shown, shape))}]"
+        return shown(shape)
+    return f"[{', '.join(map(shown, shape))}]"
 
 
 def _ndarray_convert(value: Any, path: str) -> np.ndarray[Any, Any]:
@@ -295,7 +295,7 @@ def _ndarray_convert(value: Any, path: str) -> np.ndarray[Any, Any]:
         raise _fail(path, "ndarray [dtype, shape, data]", value)
     if _DTYPE_TEXT.fullmatch(dtype_text) is None:
         raise DecodeError(
-            f"{path}: dtype {_shown(dtype_text)} is not a numeric dtype code like '<f8'",
+            f"{path}: dtype {shown(dtype_text)} is not a numeric dtype code like '<f8'",
             "wrong_type",
         )
     try:
@@ -328,23 +328,29 @@ def ndarray_to_wire(array: np.ndarray[Any, Any]) -> tuple[str, tuple[int, ...], 
     return array.dtype.str, array.shape, array.tobytes()
 
 
-NestedDecoder = Callable[[Any, str, type], Any]
-_nested: list[NestedDecoder] = []
+@dataclass(frozen=True, slots=True)
+class NestedMessages:
+    """How fields holding messages are recognised and decoded (the registry owns both).
+
+    Attributes:
+        base: the message base class: a field annotated with a subclass nests a message.
+        decode: ``decode(value, path, expected_class)`` of a nested message off the wire.
+    """
+
+    base: type
+    decode: Callable[[Any, str, type], Any]
 
 
-def nested_message_hook(decoder: NestedDecoder) -> None:
-    """Installs the nested-message decoder (the registry owns message lookup)."""
-    _nested[:] = [decoder]
+def _nested_message(kind: type, nested: NestedMessages) -> FieldType:
+    decode = nested.decode
 
-
-def _nested_message(kind: type) -> FieldType:
     def convert(value: Any, path: str) -> Any:
-        return _nested[0](value, path, kind)
+        return decode(value, path, kind)
 
     return FieldType(kind.__name__, convert)
 
 
-def field_type(annotation: Any, where: str, message_base: type) -> FieldType:
+def field_type(annotation: Any, where: str, nested: NestedMessages) -> FieldType:
     """Builds the :class:`FieldType` of an annotation, or explains why it is unsupported."""
     if annotation in _SIMPLE:
         return _SIMPLE[annotation]
@@ -360,35 +366,35 @@ def field_type(annotation: Any, where: str, message_base: type) -> FieldType:
     if isinstance(annotation, type):
         if issubclass(annotation, enum.IntEnum):
             return _int_enum(annotation)
-        if issubclass(annotation, message_base):
-            return _nested_message(annotation)
+        if issubclass(annotation, nested.base):
+            return _nested_message(annotation, nested)
     origin = typing.get_origin(annotation)
     args = typing.get_args(annotation)
     if origin is np.ndarray:  # numpy.typing.NDArray[...]
         return FieldType("ndarray", _ndarray_convert)
     if origin in (typing.Union, types.UnionType):
-        options = tuple(field_type(a, where, message_base) for a in args)
+        options = tuple(field_type(a, where, nested) for a in args)
         return _union(options, " | ".join(o.text for o in options))
     if origin is list and len(args) == 1:
-        item = field_type(args[0], where, message_base)
+        item = field_type(args[0], where, nested)
         name = f"list[{item.text}]"
         container: type | None = list if item.exact is not None else None
         wire: Any = None if item.wire is None else list[item.wire]  # type: ignore[name-defined]
         convert = _sequence(item, list, name)
         return FieldType(name, convert, None, None, container, item.exact, wire)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
-        item = field_type(args[0], where, message_base)
+        item = field_type(args[0], where, nested)
         name = f"tuple[{item.text}, ...]"
         container_t: type | None = tuple if item.exact is not None else None
         wire = None if item.wire is None else tuple[item.wire, ...]  # type: ignore[name-defined]
         convert = _sequence(item, tuple, name)
         return FieldType(name, convert, None, None, container_t, item.exact, wire)
     if origin is tuple and args:
-        items = tuple(field_type(a, where, message_base) for a in args)
+        items = tuple(field_type(a, where, nested) for a in args)
         name = f"tuple[{', '.join(i.text for i in items)}]"
         return FieldType(name, _fixed_tuple(items, name))
     if origin is dict and len(args) == 2:
-        key, val = (field_type(a, where, message_base) for a in args)
+        key, val = (field_type(a, where, nested) for a in args)
         name = f"dict[{key.text}, {val.text}]"
         return FieldType(name, _mapping(key, val, name))
     raise MessageDefinitionError(

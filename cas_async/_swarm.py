@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Iterable, Iterator
-from types import TracebackType
 from typing import final
 
 from ._errors import ConfigurationError, RobotStateError
@@ -83,10 +82,7 @@ class Swarm:
         return self
 
     async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object
     ) -> None:
         """Stops every robot, then closes every endpoint (the mirror of starting).
 

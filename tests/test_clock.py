@@ -155,3 +155,15 @@ async def test_scaled_clock_divides_sleeps_by_the_time_factor() -> None:
 def test_scaled_clock_refuses_impossible_factors(factor: float) -> None:
     with pytest.raises(ConfigurationError, match="time_factor must be a positive finite number"):
         ScaledClock(factor)
+
+
+def test_a_clock_refuses_a_second_event_loop() -> None:
+    clock = VirtualClock()
+
+    async def use() -> None:
+        async with Robot(1, [Layer()], clock=clock, messages=STACK_MESSAGES):
+            pass
+
+    cas_async.run(use(), virtual=True)
+    with pytest.raises(ConfigurationError, match="started on another event loop"):
+        cas_async.run(use(), virtual=True)

@@ -8,8 +8,10 @@ import socket
 import msgpack
 import pytest
 
+import cas_async
 from cas_async import (
     ConfigurationError,
+    EncodeError,
     Layer,
     MemoryTransport,
     Message,
@@ -22,6 +24,7 @@ from cas_async import (
     message,
     spec_of,
 )
+from cas_async.transport import Codec
 from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
 from tests.taps import Tap
@@ -249,7 +252,6 @@ async def test_virtual_time_refuses_udp() -> None:
 
 
 def test_virtual_time_with_udp_is_refused_on_the_virtual_loop() -> None:
-    import cas_async
 
     async def main() -> None:
         robot = Robot(1, [Layer()], transport=UdpTransport(), clock=VirtualClock())
@@ -262,7 +264,6 @@ def test_virtual_time_with_udp_is_refused_on_the_virtual_loop() -> None:
 
 @pytest.mark.parametrize("use_uvloop", [False, True], ids=["stdlib", "uvloop"])
 def test_two_robots_over_udp_on_each_event_loop(use_uvloop: bool) -> None:
-    import cas_async
 
     if use_uvloop and not cas_async.uvloop_available():
         pytest.skip("uvloop is not installed")
@@ -285,3 +286,78 @@ def test_two_robots_over_udp_on_each_event_loop(use_uvloop: bool) -> None:
         return [m.hops[0] for m in b[0].external]
 
     assert cas_async.run(main(), use_uvloop=use_uvloop) == list(range(100))
+
+
+async def test_another_robot_cannot_answer_an_internal_request(start_robot) -> None:
+    class Silent(Recorder):
+        async def get_intra_msg_reply(self, msg: Message) -> Message | None:
+            self.negotiations.append(msg)
+            return None
+
+    stack = [Recorder(), Silent()]
+    network = Tap()
+    robot = await start_robot(1, stack, transport=network)
+    await start_robot(2, recorders(2), transport=network)
+    asking = asyncio.create_task(stack[0].request_down(Query(1), timeout=5))
+    await settle()
+    (question,) = stack[1].negotiations
+    forged = Answer(666, 0)  # robot 2 guesses the id of robot 1's internal request
+    forged.msg_id, forged.robot_id, forged.corr_id = 7, 2, question.msg_id
+    network.deliver(1, Codec.for_stack(2, STACK_MESSAGES).encode(forged))
+    await settle()
+    assert not asking.done()
+    assert robot.dropped == {"reply_from_wrong_place": 1}
+    asking.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await asking
+
+
+async def test_a_flood_of_foreign_fingerprints_is_explained_a_few_times_only(
+    start_robot, caplog
+) -> None:
+    tap = Tap()
+    robot = await start_robot(1, recorders(1), transport=tap)
+    for fingerprint in range(1000):
+        tap.deliver(1, msgpack.packb([fingerprint, 1, 1, 1, 2, 0, 0, 0]))
+    explained = [r for r in caplog.records if "refusing datagrams" in r.getMessage()]
+    assert len(explained) == 16
+    assert robot.dropped == {"stack_mismatch": 1000}
+    assert len(caplog.records) < 30
+
+
+async def test_late_and_duplicate_replies_are_dropped_not_counted_as_received(start_robot) -> None:
+    transport = MemoryTransport()
+
+    class Mute(Recorder):
+        async def handle_msg(self, msg: Message) -> None:
+            self.external.append(msg)
+
+    asker, answerer = recorders(1), [Mute()]
+    robot = await start_robot(1, asker, transport=transport)
+    await start_robot(2, answerer, transport=transport)
+    asking = asyncio.create_task(asker[0].request(2, Query(1), timeout=5))
+    await settle()
+    (question,) = answerer[0].external
+    answerer[0].reply(question, Answer(2, 0))
+    answerer[0].reply(question, Answer(2, 0))  # the same answer twice
+    assert (await asking).value == 2
+    await settle()
+    answerer[0].reply(question, Answer(2, 0))  # and once more, later
+    await settle()
+    assert robot.dropped == {"duplicate_reply": 2}
+    assert asker[0].counters.received_external == 1
+    assert not asker[0].external
+
+
+@message
+class WideInt(Message):
+    value: int
+
+
+async def test_integers_beyond_64_bits_get_a_clear_encode_error(start_robot) -> None:
+    stack = [Layer()]
+    transport = MemoryTransport()
+    await start_robot(1, stack, transport=transport, messages=[WideInt])
+    await start_robot(2, [Layer()], transport=transport, messages=[WideInt])
+    with pytest.raises(EncodeError, match="outside the 64-bit integer range"):
+        stack[0].send(2, WideInt(2**70))

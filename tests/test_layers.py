@@ -2,11 +2,23 @@
 
 from __future__ import annotations
 
+import asyncio
+
 import pytest
 
-from cas_async import Layer, Message, MsgType, RequestTimeout
+import cas_async
+from cas_async import (
+    Layer,
+    MemoryTransport,
+    Message,
+    MsgType,
+    RequestTimeout,
+    Robot,
+    RuleViolation,
+    VirtualClock,
+)
 from tests.conftest import settle
-from tests.stacks import Answer, Note, Query, Recorder, recorders
+from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
 
 
 class Sender(Recorder):
@@ -212,3 +224,65 @@ async def test_run_returns_when_every_condition_holds(start_robot) -> None:
     stack[1].send_down(Note("z", []))
     await robot.run()
     assert [len(layer.internal) for layer in stack] == [1, 1, 1]
+
+
+async def test_reusing_a_message_object_delivers_each_send_to_its_own_layer(start_robot) -> None:
+    stack = recorders(3)
+    robot = await start_robot(1, stack)
+    note = Note("twice", [])
+    stack[1].send_up(note)
+    stack[1].send_down(note)  # still travelling upwards: a copy goes down
+    await settle()
+    assert [m.text for m in stack[0].internal] == ["twice"]
+    assert [m.text for m in stack[2].internal] == ["twice"]
+    assert robot.counters()["forwarded"] == 0
+
+
+async def test_answering_with_the_request_object_itself(start_robot) -> None:
+    transport = MemoryTransport()
+
+    class Echo(Recorder):
+        async def get_intra_msg_reply(self, msg: Message) -> Message | None:
+            msg.value *= 10  # type: ignore[attr-defined]
+            return msg
+
+        async def handle_msg(self, msg: Message) -> None:
+            msg.value += 1  # type: ignore[attr-defined]
+            self.reply(msg, msg)
+
+    mine, theirs = [Recorder(), Echo()], [Echo(), Recorder()]
+    await start_robot(1, mine, transport=transport)
+    await start_robot(2, theirs, transport=transport)
+    internal = await mine[0].request_down(Query(4), timeout=1)
+    assert (type(internal), internal.value) == (Query, 40)
+    external = await mine[0].request(2, Query(4), timeout=1)
+    assert (external.value, external.robot_id) == (5, 2)
+    assert not mine[0].internal
+    assert not mine[0].external
+
+
+def test_forwarding_does_not_wait_for_a_busy_intermediate_layer() -> None:
+    class Busy(Layer):
+        async def inner_process(self) -> None:
+            await self.clock.sleep(100)  # e.g. a Task layer waiting for a long motion
+
+    async def main() -> float:
+        clock = VirtualClock()
+        stack = [Recorder(), Busy(), Recorder()]
+        async with Robot(1, stack, clock=clock, messages=STACK_MESSAGES):
+            await asyncio.sleep(0)
+            reply = await stack[0].request_layer(2, Query(3), timeout=1)
+            assert reply.value == 6
+            return clock.now()
+
+    assert cas_async.run(main(), virtual=True) < 1.0
+
+
+async def test_rule_breaking_requests_raise_rule_violation(start_robot) -> None:
+    stack = recorders(2)
+    robot = await start_robot(1, stack, transport=MemoryTransport())
+    with pytest.raises(RuleViolation, match="request\\(\\) to its own robot 1"):
+        await stack[0].request(1, Query(1))
+    with pytest.raises(RuleViolation, match="no layer 5 to ask"):
+        await stack[0].request_layer(5, Query(1))
+    assert robot.dropped == {"to_own_robot": 1, "no_such_layer": 1}

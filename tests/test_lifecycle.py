@@ -18,7 +18,7 @@ from cas_async import (
     RobotStateError,
 )
 from tests.conftest import settle
-from tests.stacks import STACK_MESSAGES, Note, Recorder, recorders
+from tests.stacks import STACK_MESSAGES, Note, Query, Recorder, recorders
 
 
 class Boom(Recorder):
@@ -186,3 +186,38 @@ async def test_cancelling_the_embedding_task_still_shuts_down() -> None:
         await task
     assert robot.state is RobotState.STOPPED
     assert not _other_tasks()
+
+
+async def test_a_request_pending_at_stop_fails_instead_of_hanging() -> None:
+    class Silent(Recorder):
+        async def get_intra_msg_reply(self, msg: Message) -> Message | None:
+            return None
+
+    stack = [Recorder(), Silent()]
+    async with Robot(1, stack, messages=STACK_MESSAGES):
+        asking = asyncio.create_task(stack[0].request_down(Query(1), timeout=60))
+        await settle()
+    with pytest.raises(RobotStateError, match="stopped while waiting for the reply from layer 1"):
+        await asyncio.wait_for(asking, 5)
+
+
+def test_impossible_limits_are_refused_at_construction() -> None:
+    with pytest.raises(ConfigurationError, match="max_datagram_size must be at least 64"):
+        Robot(1, [Layer()], max_datagram_size=32)
+    with pytest.raises(ConfigurationError, match="queue_limit at least 1"):
+        Robot(1, [Layer()], queue_limit=0)
+
+
+async def test_broadcast_without_a_transport_says_so(start_robot) -> None:
+    stack = recorders(1)
+    await start_robot(1, stack)
+    with pytest.raises(ConfigurationError, match="robot 1 has no transport"):
+        stack[0].broadcast(Note("anyone?", []))
+
+
+def test_log_and_counters_before_joining_a_robot() -> None:
+    layer = Recorder()
+    with pytest.raises(RobotStateError, match="not part of a robot yet"):
+        _ = layer.log
+    with pytest.raises(RobotStateError, match="not part of a robot yet"):
+        _ = layer.counters

@@ -20,6 +20,7 @@ from cas_async import (
     ScaledClock,
     VirtualClock,
 )
+from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Note
 
 
@@ -312,3 +313,31 @@ async def test_in_real_time_a_failure_stops_a_robot_whose_other_layer_sleeps_an_
             await asyncio.wait_for(robot.run(), 5)  # a guard against hanging, not a measurement
     assert sleeper.cancelled_at is not None
     assert robot.state is RobotState.STOPPED
+
+
+async def test_a_layer_whose_await_is_cancelled_from_outside_fails_the_robot() -> None:
+    driver: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+
+    class Waits(Layer):
+        async def inner_process(self) -> None:
+            await driver  # e.g. a hardware driver's future, cancelled by someone else
+
+    robot = Robot(1, [Waits(), Layer()], messages=STACK_MESSAGES)
+    with pytest.raises(LayerError, match=r"robot 1, layer 0 \(Waits\) failed: CancelledError"):
+        async with robot:
+            await settle()
+            driver.cancel()
+            await asyncio.wait_for(robot.run(), 5)
+    assert robot.state is RobotState.STOPPED
+
+
+async def test_a_layer_failure_is_noted_on_the_block_s_own_exception() -> None:
+    class Boom(Layer):
+        async def inner_process(self) -> None:
+            raise RuntimeError("boom")
+
+    with pytest.raises(KeyError) as caught:
+        async with Robot(1, [Boom()], messages=STACK_MESSAGES):
+            await settle()
+            raise KeyError("the body's own error")
+    assert any("robot 1, layer 0 (Boom) failed" in note for note in caught.value.__notes__)

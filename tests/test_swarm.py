@@ -18,6 +18,7 @@ from cas_async import (
     Swarm,
     UdpTransport,
 )
+from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Note, Recorder
 
 
@@ -98,3 +99,47 @@ async def test_run_before_start_is_refused() -> None:
         await swarm.run()
     assert len(swarm) == 1
     assert swarm[1].robot_id == 1
+
+
+class Lingers(Recorder):
+    """On cancellation, still tells robot 0 goodbye (a common clean-up pattern)."""
+
+    async def inner_process(self) -> None:
+        try:
+            await asyncio.Event().wait()
+        finally:
+            if self.robot_id != 0:
+                self.send(0, Note(f"bye from {self.robot_id}", []))
+
+
+async def test_swarm_stops_every_robot_before_closing_any() -> None:
+    transport = MemoryTransport()
+    swarm = Swarm(
+        Robot(i, [Lingers(), Layer()], transport=transport, messages=STACK_MESSAGES)
+        for i in range(3)
+    )
+    async with swarm:
+        await settle()
+    assert [robot.state for robot in swarm] == [RobotState.STOPPED] * 3
+
+
+async def test_swarm_exit_under_cancellation_still_stops_every_robot() -> None:
+    transport = MemoryTransport()
+    swarm = Swarm(
+        Robot(i, [Recorder(), Layer()], transport=transport, messages=STACK_MESSAGES)
+        for i in range(3)
+    )
+    for robot in swarm:
+        robot.layers[0].expected = 99
+
+    async def embed() -> None:
+        async with swarm:
+            await swarm.run()
+
+    task = asyncio.create_task(embed())
+    await settle()
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert [robot.state for robot in swarm] == [RobotState.STOPPED] * 3
+    assert not transport._endpoints

@@ -35,7 +35,7 @@ from typing import Any, Final, Literal, TypeVar, Union, get_args, get_origin, ge
 
 from .._errors import ConfigurationError
 
-__all__ = ["ScenarioError", "from_toml", "setting"]
+__all__ = ["ScenarioError", "from_toml", "setting", "show"]
 
 T = TypeVar("T")
 
@@ -101,7 +101,7 @@ class _Bounds:
 
     def __str__(self) -> str:
         limits = ((">=", self.ge), (">", self.gt), ("<=", self.le), ("<", self.lt))
-        return " and ".join(f"{op} {_show(bound)}" for op, bound in limits if bound is not None)
+        return " and ".join(f"{op} {show(bound)}" for op, bound in limits if bound is not None)
 
 
 _NO_BOUNDS: Final = _Bounds()
@@ -240,7 +240,7 @@ def _scalar(hint: type, bounds: _Bounds, value: object, key: str, problems: _Pro
         assert isinstance(value, int | float)
         if not (math.isfinite(value) and bounds.admit(value)):
             note = "" if math.isfinite(value) else " (not finite)"
-            problems.append((key, f"expected {_expected(hint, bounds)}, got {_show(value)}{note}"))
+            problems.append((key, f"expected {_expected(hint, bounds)}, got {show(value)}{note}"))
             return _INVALID
         return hint(value)
     return value
@@ -251,14 +251,14 @@ def _choice(choices: tuple[Any, ...], value: object, key: str, problems: _Proble
         # 1 == True in Python; a TOML choice must match in type as well.
         if type(choice) is type(value) and choice == value:
             return choice
-    expected = "one of " + ", ".join(_show(choice) for choice in choices)
+    expected = "one of " + ", ".join(show(choice) for choice in choices)
     if not isinstance(value, str):
         problems.append((key, _wrong(expected, value)))
         return _INVALID
     words = [choice for choice in choices if isinstance(choice, str)]
     close = difflib.get_close_matches(value, words, n=1)
-    hint = f" (did you mean {_show(close[0])}?)" if close else ""
-    problems.append((key, f"expected {expected}, got {_show(value)}{hint}"))
+    hint = f" (did you mean {show(close[0])}?)" if close else ""
+    problems.append((key, f"expected {expected}, got {show(value)}{hint}"))
     return _INVALID
 
 
@@ -272,7 +272,7 @@ def _array(hint: Any, bounds: _Bounds, value: object, key: str, problems: _Probl
         args = args[:1] * len(value)
     elif len(value) != len(args):
         count = f"{len(value)} item{'' if len(value) == 1 else 's'}"
-        problems.append((key, f"expected {_expected(hint, bounds)}, got {_show(value)} ({count})"))
+        problems.append((key, f"expected {_expected(hint, bounds)}, got {show(value)} ({count})"))
         return _INVALID
     before = len(problems)
     items = [
@@ -290,7 +290,7 @@ def _expected(hint: Any, bounds: _Bounds = _NO_BOUNDS) -> str:
     if origin is Union or origin is types.UnionType:
         return _expected(_optional(hint), bounds)
     if origin is Literal:
-        return "one of " + ", ".join(_show(choice) for choice in args)
+        return "one of " + ", ".join(show(choice) for choice in args)
     if origin is tuple or origin is list:
         if origin is list or args[-1:] == (Ellipsis,):
             return f"an array of {_noun(args[0], bounds, plural=True)}"
@@ -318,7 +318,7 @@ def _unknown(name: str, known: list[str]) -> str:
 
 
 def _wrong(expected: str, value: object) -> str:
-    return f"expected {expected}, got {_show(value)} ({_kind(value)})"
+    return f"expected {expected}, got {show(value)} ({_kind(value)})"
 
 
 def _kind(value: object) -> str:
@@ -334,7 +334,7 @@ def _kind(value: object) -> str:
     return next((kind for cls, kind in kinds if isinstance(value, cls)), type(value).__name__)
 
 
-def _show(value: object) -> str:
+def show(value: object) -> str:
     """``value`` as it would be written in TOML, cut short if long."""
     text = _toml(value)
     return text if len(text) <= _SHOW_LIMIT else text[: _SHOW_LIMIT - 1] + "…"

@@ -49,7 +49,7 @@ from typing import Any, Final, Literal, cast
 from .._supervision import RestartPolicy
 from ..transport._faulty import Faults
 from ._app import SimulationApp
-from ._config import ScenarioError, _show, from_toml, setting
+from ._config import ScenarioError, from_toml, setting, show
 
 __all__ = [
     "FaultsConfig",
@@ -267,7 +267,7 @@ def apply_overrides(
                 problems.append(
                     (
                         "--set",
-                        f"cannot set {key}={_show(value)}: {where} is {_show(table)}, not a table",
+                        f"cannot set {key}={show(value)}: {where} is {show(table)}, not a table",
                     )
                 )
                 break
@@ -300,7 +300,7 @@ def _read_extended(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
     if base is None:
         return data
     if not isinstance(base, str) or not base:
-        raise ScenarioError([("extends", f"expected a path to a TOML file, got {_show(base)}")])
+        raise ScenarioError([("extends", f"expected a path to a TOML file, got {show(base)}")])
     base_path = path.parent / base
     chain = (*seen, path)
     if base_path.resolve() in {p.resolve() for p in chain}:
@@ -339,7 +339,7 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
     faults = _section(FaultsConfig, data.get("faults", {}), "faults", problems)
     if faults is not None and faults.delay[0] > faults.delay[1]:
         problems.append(
-            ("faults.delay", f"expected [min, max] with min <= max, got {_show(faults.delay)}")
+            ("faults.delay", f"expected [min, max] with min <= max, got {show(faults.delay)}")
         )
     config = None
     if app is not None:
@@ -414,7 +414,7 @@ def _import_app(
         problems.append(("app", f"missing required key (expected {_APP_EXPECTED})"))
         return "", None
     if not isinstance(spec, str) or not _IMPORT_PATH.fullmatch(spec):
-        problems.append(("app", f"expected {_APP_EXPECTED}, got {_show(spec)}"))
+        problems.append(("app", f"expected {_APP_EXPECTED}, got {show(spec)}"))
         return "", None
     module_name, _, attribute = spec.partition(":")
     attribute = attribute or "app"
@@ -422,28 +422,28 @@ def _import_app(
     try:
         module = importlib.import_module(module_name)
     except ImportError as error:
-        problems.append(("app", f"cannot import {_show(module_name)}: {error}"))
+        problems.append(("app", f"cannot import {show(module_name)}: {error}"))
         return spec, None
     app: Any = getattr(module, attribute, _MISSING)
     if app is _MISSING:
-        problems.append(("app", f"module {_show(module_name)} has no attribute {attribute!r}"))
+        problems.append(("app", f"module {show(module_name)} has no attribute {attribute!r}"))
         return spec, None
     lacking = [member for member in _APP_MEMBERS if not hasattr(app, member)]
     if lacking:
         problems.append(
-            ("app", f"{_show(spec)} is not a simulation app: it has no {', '.join(lacking)}")
+            ("app", f"{show(spec)} is not a simulation app: it has no {', '.join(lacking)}")
         )
         return spec, None
     config_type = app.config_type
     if not (isinstance(config_type, type) and dataclasses.is_dataclass(config_type)):
         problems.append(
-            ("app", f"{_show(spec)}: config_type must be a dataclass, got {config_type!r}")
+            ("app", f"{show(spec)}: config_type must be a dataclass, got {config_type!r}")
         )
         return spec, None
     clashes = sorted(_RESERVED.intersection(f.name for f in dataclasses.fields(config_type)))
     if clashes:
         problems.append(
-            ("app", f"{_show(spec)}: config_type may not have keys {', '.join(clashes)}")
+            ("app", f"{show(spec)}: config_type may not have keys {', '.join(clashes)}")
         )
         return spec, None
     return spec, cast(SimulationApp, app)

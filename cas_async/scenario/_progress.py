@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from typing import Final, TextIO, final
 
-from ._report import _plural
+from ._report import plural
 
 __all__ = ["Progress"]
 
@@ -77,7 +77,7 @@ class Progress:
             raise ValueError(f"Progress: interval must be a positive number, got {interval!r}")
         self._stream = stream
         self._target = int(target)
-        self._items = _plural(item_name)
+        self._items = plural(item_name)
         self._tty = stream.isatty() if tty is None else tty
         self._period = _TTY_PERIOD if self._tty else float(interval)
         self._now = now

@@ -32,7 +32,14 @@ import numpy as np
 
 from ._results import RunResult, RunStatus
 
-__all__ = ["results_dict", "statistics", "summary_table", "write_results"]
+__all__ = [
+    "atomic_text_file",
+    "plural",
+    "results_dict",
+    "statistics",
+    "summary_table",
+    "write_results",
+]
 
 _STATUS_WORDS = {
     RunStatus.INTERRUPTED: "INTERRUPTED (stopped before the target)",
@@ -146,13 +153,13 @@ def write_results(result: RunResult, out_dir: Path) -> Path:
     path = Path(out_dir) / "results.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps(results_dict(result), indent=2, ensure_ascii=False) + "\n"
-    with _atomic_text_file(path) as stream:
+    with atomic_text_file(path) as stream:
         stream.write(text)
     return path
 
 
 @contextmanager
-def _atomic_text_file(path: Path) -> Iterator[TextIO]:
+def atomic_text_file(path: Path) -> Iterator[TextIO]:
     """A UTF-8 text stream that becomes ``path`` only if the ``with`` body completes."""
     fd, temp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     # mkstemp makes the file private (0600); a result file gets the usual mode
@@ -181,7 +188,7 @@ _Row = tuple[str, str | list[str], str]
 
 def summary_table(result: RunResult) -> str:
     """A plain-text summary of ``result`` for a terminal, one figure per line."""
-    item, items = result.item_name, _plural(result.item_name)
+    item, items = result.item_name, plural(result.item_name)
     completed = result.status is RunStatus.COMPLETED
     status = "completed" if completed else _STATUS_WORDS.get(result.status, str(result.status))
     rows: list[_Row] = []
@@ -265,7 +272,7 @@ def _wrap(parts: Sequence[str], width: int) -> list[str]:
     return lines
 
 
-def _plural(noun: str) -> str:
+def plural(noun: str) -> str:
     if noun.endswith(("s", "x", "z", "ch", "sh")):
         return noun + "es"
     if len(noun) > 1 and noun.endswith("y") and noun[-2] not in "aeiou":

@@ -9,7 +9,7 @@ from typing import Any
 __all__ = ["RunResult", "RunStatus"]
 
 
-class RunStatus(enum.Enum):
+class RunStatus(enum.StrEnum):
     """How a run ended."""
 
     COMPLETED = "completed"
@@ -20,9 +20,6 @@ class RunStatus(enum.Enum):
     """``run.max_time`` simulated seconds passed before the target."""
     FAILED = "failed"
     """A layer raised; ``RunResult.error`` says which and why."""
-
-    def __str__(self) -> str:
-        return self.value
 
 
 @dataclass(slots=True)

@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._errors import SimulationError
-from ._report import _atomic_text_file
+from ._report import atomic_text_file
 
 __all__ = ["Trace"]
 
@@ -222,7 +222,7 @@ class Trace:
         atomically: an interrupted write leaves the previous file (or none).
         """
         ids = [str(robot_id) for robot_id in self._ids]
-        with _atomic_text_file(Path(path)) as stream:
+        with atomic_text_file(Path(path)) as stream:
             stream.write("t,robot,x,y,exchange\n")
             for t, exchange, xy in self._in_time_order():
                 prefix = f"{t!r},"

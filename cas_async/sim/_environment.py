@@ -182,6 +182,12 @@ class Environment:
         except KeyError:
             raise UnknownRobotError(f"robot {robot_id} is not in the environment") from None
 
+    def _robot_at(self, robot_id: RobotId, t: float) -> _Robot:
+        """The robot, to be asked about instant ``t`` (checked)."""
+        robot = self._robot(robot_id)
+        _check_instant(t)
+        return robot
+
     # -- motion -------------------------------------------------------------------------
 
     def start_motion(self, robot_id: RobotId, motion: Motion, start_time: float) -> None:
@@ -251,8 +257,7 @@ class Environment:
             UnknownRobotError: no such robot.
             SimulationError: ``t`` is NaN.
         """
-        robot = self._robot(robot_id)
-        _check_instant(t)
+        robot = self._robot_at(robot_id, t)
         return robot.motion.pose_at(t - robot.since)
 
     def positions_at(self, t: float) -> Positions:
@@ -345,9 +350,7 @@ class Environment:
             UnknownRobotError: no such robot.
             SimulationError: ``t`` is NaN.
         """
-        robot = self._robot(robot_id)
-        _check_instant(t)
-        return robot.travelled(t)
+        return self._robot_at(robot_id, t).travelled(t)
 
     def distances(self, t: float) -> dict[RobotId, float]:
         """Every robot's :meth:`distance_travelled` up to ``t``, in the order they were added.

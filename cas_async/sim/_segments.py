@@ -20,22 +20,14 @@ from ._kinematics import Motion
 
 __all__ = ["SegmentTable"]
 
-# Columns of the row table.
-_T_TRANSLATE: Final = 0  # absolute instant the translation starts
-_T_END: Final = 1  # absolute instant the motion ends (-inf: standing)
-_X0: Final = 2
-_Y0: Final = 3
-_X1: Final = 4
-_Y1: Final = 5
-_LENGTH: Final = 6
+# Columns of the row table: the absolute instant the translation starts, the
+# absolute instant the motion ends (-inf: standing), start and end points, length.
+_T_TRANSLATE, _T_END, _X0, _Y0, _X1, _Y1, _LENGTH = range(7)
 _COLUMNS: Final = 7
 
 # Fields of a phase: start (seconds into the translation), distance at start,
 # speed at start, acceleration. Unused phase slots start at +inf, never in force.
-_P_START: Final = 0
-_P_DIST: Final = 1
-_P_SPEED: Final = 2
-_P_ACCEL: Final = 3
+_P_START, _P_DIST, _P_SPEED, _P_ACCEL = range(4)
 
 _INITIAL_CAPACITY: Final = 64
 
