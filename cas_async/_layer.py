@@ -29,7 +29,7 @@ object itself) sends a copy, so a message still travelling never changes under i
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Awaitable, Callable, Iterable, Sequence
 from typing import Any, ClassVar, Generic, Self, TypeVar, cast, overload
 
 from ._clock import Clock
@@ -168,19 +168,22 @@ class Layer:
         """
         self._cas.send_to_layer(level, msg)
 
-    async def request_down(self, msg: Message, *, timeout: float | None = None) -> Message:
-        """Sends a NEGOTIATION to the layer below and returns its automatic reply."""
-        cas = self._cas
-        return await cas.request_layer(cas.level + 1, msg, timeout)
+    # The request methods return the runtime's coroutine itself: awaiting it is
+    # awaiting the request, without a second coroutine frame on every round trip.
 
-    async def request_up(self, msg: Message, *, timeout: float | None = None) -> Message:
-        """Sends a NEGOTIATION to the layer above and returns its automatic reply."""
+    def request_down(self, msg: Message, *, timeout: float | None = None) -> Awaitable[Message]:
+        """Sends a NEGOTIATION to the layer below; awaiting it gives its automatic reply."""
         cas = self._cas
-        return await cas.request_layer(cas.level - 1, msg, timeout)
+        return cas.request_layer(cas.level + 1, msg, timeout)
 
-    async def request_layer(
+    def request_up(self, msg: Message, *, timeout: float | None = None) -> Awaitable[Message]:
+        """Sends a NEGOTIATION to the layer above; awaiting it gives its automatic reply."""
+        cas = self._cas
+        return cas.request_layer(cas.level - 1, msg, timeout)
+
+    def request_layer(
         self, level: Level, msg: Message, *, timeout: float | None = None
-    ) -> Message:
+    ) -> Awaitable[Message]:
         """Sends a NEGOTIATION to layer ``level`` of this robot; returns its reply.
 
         The reply comes from that layer's ``get_intra_msg_reply``.
@@ -190,7 +193,7 @@ class Layer:
             RuleViolation: ``level`` is this layer's or outside the stack (counted too).
             RobotStateError: the robot stopped while waiting.
         """
-        return await self._cas.request_layer(level, msg, timeout)
+        return self._cas.request_layer(level, msg, timeout)
 
     # -- external messages -----------------------------------------------------------
 
@@ -202,7 +205,8 @@ class Layer:
             EncodeError: the message cannot be encoded.
             ConfigurationError: the robot has no transport.
         """
-        self._cas.send(robot_id, msg)
+        cas = self._cas
+        cas.outbox.send(cas, robot_id, msg)
 
     def resend(self, robot_id: RobotId, msg: Message) -> None:
         """Sends an external message this layer already sent, again and unchanged.
@@ -239,15 +243,15 @@ class Layer:
         """
         self._cas.reply(request, response)
 
-    async def request(
+    def request(
         self,
         robot_id: RobotId,
         msg: Message,
         *,
         timeout: float | None = None,
         retries: int = 0,
-    ) -> Message:
-        """Sends a NEGOTIATION to robot ``robot_id`` and returns its reply.
+    ) -> Awaitable[Message]:
+        """Sends a NEGOTIATION to robot ``robot_id``; awaiting it gives the reply.
 
         The other robot answers from ``handle_msg`` with ``self.reply(msg, response)``.
         With ``retries``, a request left unanswered for ``timeout`` is sent again,
@@ -269,7 +273,7 @@ class Layer:
             RobotStateError: the robot stopped while waiting.
             ValueError: ``retries`` is negative.
         """
-        return await self._cas.request(robot_id, msg, timeout, retries)
+        return self._cas.request(robot_id, msg, timeout, retries)
 
     def silent_for(self, robot_id: RobotId) -> float:
         """Simulated seconds since a message from robot ``robot_id`` was last delivered.

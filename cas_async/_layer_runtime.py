@@ -230,7 +230,8 @@ class LayerRuntime:
 
     def send_up(self, msg: Message) -> None:
         """Sends an internal message to the layer directly above."""
-        self.check_live()
+        if not self.live:
+            self.check_live()
         if self.above is None:
             self.violation("no_layer_above", msg)
             return
@@ -238,7 +239,8 @@ class LayerRuntime:
 
     def send_down(self, msg: Message) -> None:
         """Sends an internal message to the layer directly below."""
-        self.check_live()
+        if not self.live:
+            self.check_live()
         if self.below is None:
             self.violation("no_layer_below", msg)
             return
@@ -246,9 +248,12 @@ class LayerRuntime:
 
     def send_to_layer(self, level: Level, msg: Message) -> None:
         """Sends an internal message to any other layer of this robot."""
-        self.check_live()
-        if self.level_ok(level, msg):
-            self.send_internal(level, owned(msg))
+        if not self.live:
+            self.check_live()
+        # The common case checked inline (this is the hot path of internal traffic);
+        # level_ok() explains and counts the rest.
+        if (level != self.level and 0 <= level < len(self.stack)) or self.level_ok(level, msg):
+            self.send_internal(level, msg if msg.msg_id == 0 else owned(msg))
 
     def level_ok(self, level: Level, msg: Message) -> bool:
         """Whether ``level`` is another layer of this robot; if not, the drop is counted."""
@@ -297,15 +302,6 @@ class LayerRuntime:
         self.send_internal(asker, owned(response), asked_id)
 
     # -- external messages ---------------------------------------------------------------
-
-    def send(self, robot_id: RobotId, msg: Message) -> None:
-        """Sends an external message to the same level of robot ``robot_id``."""
-        if not self.live:
-            self.check_live()
-        if robot_id == self.outbox.robot_id:
-            self.violation("to_own_robot", msg)
-            return
-        self.outbox.send(self.counters, self.level, robot_id, msg)
 
     def resend(self, robot_id: RobotId, msg: Message) -> None:
         """Sends an external message this layer already sent, again and unchanged."""

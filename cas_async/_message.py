@@ -30,7 +30,17 @@ from typing import Any, Final, TypeVar, dataclass_transform, overload
 from ._errors import DecodeError, MessageDefinitionError
 from ._schema import FieldType, NestedMessages, field_type
 
-__all__ = ["HEADER_FIELDS", "Message", "MessageSpec", "MsgType", "message", "registered", "spec_of"]
+__all__ = [
+    "HEADER_FIELDS",
+    "Message",
+    "MessageSpec",
+    "MsgType",
+    "message",
+    "nested_to_wire",
+    "registered",
+    "spec_of",
+    "specs_for",
+]
 
 
 class MsgType(enum.IntEnum):
@@ -195,11 +205,6 @@ def spec_of(cls: type[Message]) -> MessageSpec:
 def registered() -> Iterator[MessageSpec]:
     """Every registered message spec, in type-id order."""
     return iter(sorted(_by_id.values(), key=lambda s: s.type_id))
-
-
-def lookup(type_id: int) -> MessageSpec | None:
-    """The spec registered under a wire type id, if any."""
-    return _by_id.get(type_id)
 
 
 def specs_for(classes: Iterable[type[Message]] | None) -> dict[int, MessageSpec]:

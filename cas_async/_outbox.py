@@ -22,7 +22,7 @@ from __future__ import annotations
 import copy
 import itertools
 from collections.abc import Iterable, Iterator
-from typing import Final, NoReturn, final
+from typing import Final, NoReturn, Protocol, final
 
 from ._counters import LayerCounters
 from ._dedup import ReplyCache
@@ -34,7 +34,7 @@ from ._wire_codec import WireCodec
 from .transport._base import Endpoint
 from .transport._unconnected import Unconnected
 
-__all__ = ["Outbox", "owned"]
+__all__ = ["Outbox", "Sender", "owned"]
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
 
@@ -42,6 +42,28 @@ _NEGOTIATION: Final = MsgType.NEGOTIATION
 def owned(msg: Message) -> Message:
     """The object to stamp and send: ``msg`` the first time, a copy if it was sent before."""
     return msg if msg.msg_id == 0 else copy.copy(msg)
+
+
+class Sender(Protocol):
+    """The layer a message leaves from, as the outbox sees it (a layer's runtime)."""
+
+    @property
+    def live(self) -> bool:
+        """Whether the robot runs (the layer may send)."""
+
+    @property
+    def level(self) -> Level:
+        """The layer's level: external messages go to the same level."""
+
+    @property
+    def counters(self) -> LayerCounters:
+        """Where what it sends is counted."""
+
+    def check_live(self) -> None:
+        """Raises ``RobotStateError``, naming why the layer may not send."""
+
+    def violation(self, reason: str, msg: Message) -> None:
+        """Counts a message the layer sent against a rule."""
 
 
 @final
@@ -136,30 +158,41 @@ class Outbox:
 
     # -- sending -------------------------------------------------------------------------
 
-    def send(self, counters: LayerCounters, level: Level, robot_id: RobotId, msg: Message) -> None:
-        """Stamps, encodes and sends ``msg`` from layer ``level`` to robot ``robot_id``.
+    def send(self, sender: Sender, robot_id: RobotId, msg: Message) -> None:
+        """Stamps, encodes and sends ``msg`` from layer ``sender`` to robot ``robot_id``.
 
-        No copy is needed when the message is encoded before this returns; a codec
-        that passes objects sends a copy of one sent before.
+        The hot path of external traffic: stamped and counted inline, as
+        :meth:`transmit` does for the other kinds of message. No copy is needed
+        when the message is encoded before this returns; a codec that passes
+        objects sends a copy of one sent before.
 
         Raises:
+            RobotStateError: the robot does not run.
             UnknownRobotError: the transport knows no such robot.
             EncodeError: the message cannot be encoded.
             ConfigurationError: the robot has no transport.
         """
+        if not sender.live:
+            sender.check_live()
+        if robot_id == self.robot_id:
+            sender.violation("to_own_robot", msg)
+            return
         codec = self._codec
         if codec.passes_objects:
             msg = owned(msg)
-        # The header is stamped inline: this is the hot path of external traffic.
         msg.msg_id = next(self._ids)
         msg.robot_id = self.robot_id
-        msg.src_layer = msg.dst_layer = level
+        msg.src_layer = msg.dst_layer = sender.level
         msg.corr_id = 0
-        self._emit(counters, robot_id, codec.encode(msg), msg.__class__)
+        self._endpoint.send(robot_id, codec.encode(msg))
+        counters = sender.counters
+        counters.sent_external += 1
+        by_type = counters.external_by_type
+        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
 
     def resend(self, counters: LayerCounters, robot_id: RobotId, msg: Message) -> None:
         """Sends a message already stamped by this robot again, unchanged (same id)."""
-        self._emit(counters, robot_id, self._codec.encode(msg), msg.__class__)
+        self.transmit(counters, robot_id, self._codec.encode(msg), msg.__class__)
 
     def request(self, level: Level, msg: Message) -> bytes:
         """Stamps ``msg`` (already owned) as a NEGOTIATION from ``level``; returns its datagram.
@@ -173,12 +206,6 @@ class Outbox:
         msg.src_layer = msg.dst_layer = level
         msg.corr_id = 0
         return self._codec.encode(msg)
-
-    def transmit(
-        self, counters: LayerCounters, robot_id: RobotId, data: bytes, kind: type[Message]
-    ) -> None:
-        """Sends an encoded message of class ``kind`` (one attempt of a request)."""
-        self._emit(counters, robot_id, data, kind)
 
     def broadcast(
         self,
@@ -205,7 +232,7 @@ class Outbox:
             if sent and codec.passes_objects:  # each receiver gets a message of its own
                 data = codec.encode(copy.copy(msg))
             try:
-                self._emit(counters, robot_id, data, msg.__class__)
+                self.transmit(counters, robot_id, data, msg.__class__)
             except UnknownRobotError:
                 unknown.append(robot_id)
             else:
@@ -233,34 +260,31 @@ class Outbox:
         response.corr_id = request_id
         data = self._codec.encode(response)
         self._replies.keep(asker, request_id, data)
-        self._deliver_reply(counters, asker, data, response.__class__)
-
-    def resend_reply(self, asker: RobotId, request_id: int) -> None:
-        """Answers a repeated request with the reply kept for it, if any."""
-        data = self._replies.get(asker, request_id)
-        if data is not None:
-            self.replies_resent += 1
-            self._deliver_reply(None, asker, data, None)
-
-    def _deliver_reply(
-        self,
-        counters: LayerCounters | None,
-        asker: RobotId,
-        data: bytes,
-        kind: type[Message] | None,
-    ) -> None:
         try:
-            if counters is None or kind is None:  # a kept reply: counted as resent
-                self._endpoint.send(asker, data)
-            else:
-                self._emit(counters, asker, data, kind)
+            self.transmit(counters, asker, data, response.__class__)
         except (UnknownRobotError, RobotStateError) as exc:
             self._drops.drop("reply_undeliverable", str(exc))
 
-    def _emit(
+    def resend_reply(self, asker: RobotId, request_id: int) -> None:
+        """Answers a repeated request with the reply kept for it, if any (not counted as sent)."""
+        data = self._replies.get(asker, request_id)
+        if data is None:
+            return
+        self.replies_resent += 1
+        try:
+            self._endpoint.send(asker, data)
+        except (UnknownRobotError, RobotStateError) as exc:
+            self._drops.drop("reply_undeliverable", str(exc))
+
+    def transmit(
         self, counters: LayerCounters, robot_id: RobotId, data: bytes, kind: type[Message]
     ) -> None:
-        """The one place an external message leaves the robot and is counted."""
+        """Sends an encoded message of class ``kind`` and counts it.
+
+        Every external message but a plain ``send`` (which inlines the same steps)
+        leaves the robot here: each attempt of a request, a reply, a resend, each
+        copy of a broadcast.
+        """
         self._endpoint.send(robot_id, data)
         counters.sent_external += 1
         by_type = counters.external_by_type

@@ -62,7 +62,17 @@ class Reception:
         log: the robot's logger (a foreign stack is explained there).
     """
 
-    __slots__ = ("_drops", "_layers", "_log", "_mismatches_seen", "_now", "_outbox", "_senders")
+    __slots__ = (
+        "_decode",
+        "_drops",
+        "_layers",
+        "_log",
+        "_mismatches_seen",
+        "_now",
+        "_outbox",
+        "_robot_id",
+        "_senders",
+    )
 
     def __init__(
         self,
@@ -73,6 +83,8 @@ class Reception:
     ) -> None:
         self._layers = layers
         self._outbox = outbox
+        self._robot_id = outbox.robot_id
+        self._decode = outbox.codec.decode  # the codec of a robot that has not started
         self._drops = drops
         self._log = log
         self._now: Callable[[], float] | None = None  # set while running
@@ -80,7 +92,8 @@ class Reception:
         self._senders = SenderWindows()
 
     def open(self, now: Callable[[], float]) -> None:
-        """Starts delivering; ``now()`` (loop time) dates each sender's news."""
+        """Starts delivering with the outbox's codec; ``now()`` dates each sender's news."""
+        self._decode = self._outbox.codec.decode
         self._now = now
 
     def close(self) -> None:
@@ -93,33 +106,38 @@ class Reception:
 
     def datagram_received(self, data: bytes, sender: RobotId | None = None) -> None:
         """Decodes, checks and routes one datagram; anything wrong is dropped and counted."""
-        drop = self._drops.drop
         now = self._now
         if now is None:
-            drop("not_running", f"{_describe(data)} while not running")
+            self._drops.drop("not_running", f"{_describe(data)} while not running")
             return
         try:
-            msg = self._outbox.codec.decode(data)
+            msg = self._decode(data)
         except StackMismatchError as exc:
             self._refuse_stack(exc)
             return
         except DecodeError as exc:
-            drop(f"decode.{exc.reason}", str(exc))
+            self._drops.drop(f"decode.{exc.reason}", str(exc))
             return
         level = msg.dst_layer
         claimed = msg.robot_id
         layers = self._layers
         if msg.src_layer != level:
-            drop("cross_level", f"external {msg!r}: external messages connect same levels only")
+            self._drops.drop(
+                "cross_level", f"external {msg!r}: external messages connect same levels only"
+            )
         elif not 0 <= level < len(layers):
-            drop("no_such_layer", f"external {msg!r}: this robot has {len(layers)} layers")
-        elif claimed == self._outbox.robot_id:
-            drop("from_own_id", f"external {msg!r} claims to come from this robot")
+            self._drops.drop(
+                "no_such_layer", f"external {msg!r}: this robot has {len(layers)} layers"
+            )
+        elif claimed == self._robot_id:
+            self._drops.drop("from_own_id", f"external {msg!r} claims to come from this robot")
         elif sender is not None and claimed != sender:
-            drop("spoofed_sender", f"external {msg!r} was sent by robot {sender}")
+            self._drops.drop("spoofed_sender", f"external {msg!r} was sent by robot {sender}")
         elif sender is None and not self._outbox.knows(claimed):
             # A sender the transport named is one it knows; only an anonymous one is looked up.
-            drop("unknown_sender", f"external {msg!r} from a robot this one cannot reach")
+            self._drops.drop(
+                "unknown_sender", f"external {msg!r} from a robot this one cannot reach"
+            )
         else:
             seen = self._senders.check(claimed, msg.msg_id, now())
             if seen:

@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-from cas_async import Message, MessageDefinitionError, MsgType, message, spec_of
-from cas_async._message import HEADER_FIELDS, lookup, registered, specs_for
+from cas_async import Message, MessageDefinitionError, MessageSpec, MsgType, message, spec_of
+from cas_async._message import HEADER_FIELDS, registered, specs_for
 
 
 @message
@@ -44,6 +44,11 @@ class MsgNotDecorated(Message):
     n: int = 0
 
 
+def by_type_id(type_id: int) -> MessageSpec | None:
+    """The spec registered under a wire type id, if any."""
+    return next((spec for spec in registered() if spec.type_id == type_id), None)
+
+
 def crc_id(name: str) -> int:
     return zlib.crc32(name.encode()) & 0x7FFF_FFFF
 
@@ -65,7 +70,7 @@ def crc_id(name: str) -> int:
 def test_type_id_is_stable_and_registered(cls: type[Message], name: str, type_id: int) -> None:
     spec = spec_of(cls)
     assert (spec.cls, spec.name, spec.type_id) == (cls, name, type_id)
-    assert lookup(type_id) is spec
+    assert by_type_id(type_id) is spec
     assert spec in list(registered())
     assert specs_for([cls]) == {type_id: spec}
 
@@ -112,7 +117,7 @@ def test_same_type_id_from_another_class_is_refused_naming_both() -> None:
     text = str(caught.value)
     assert "MsgFixedId" in text
     assert "MsgIdThief" in text
-    assert lookup(1_234_567_891) is spec_of(MsgFixedId)
+    assert by_type_id(1_234_567_891) is spec_of(MsgFixedId)
 
 
 def test_refused_redefinition_leaves_the_registry_unchanged() -> None:
@@ -129,7 +134,7 @@ def test_refused_redefinition_leaves_the_registry_unchanged() -> None:
     with pytest.raises(MessageDefinitionError, match="MsgFixedId"):
         define(1_234_567_891)
     assert spec_of(first).cls is first
-    assert lookup(crc_id("MsgRedefinedBadly")) is spec_of(first)
+    assert by_type_id(crc_id("MsgRedefinedBadly")) is spec_of(first)
 
 
 def test_redefinition_of_the_same_module_and_qualname_is_allowed() -> None:
@@ -146,7 +151,7 @@ def test_redefinition_of_the_same_module_and_qualname_is_allowed() -> None:
     assert first is not second
     spec = spec_of(second)
     assert spec.cls is second
-    assert lookup(crc_id("MsgRedefined")) is spec
+    assert by_type_id(crc_id("MsgRedefined")) is spec
     assert [s.name for s in registered()].count("MsgRedefined") == 1
 
 

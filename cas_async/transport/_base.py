@@ -4,7 +4,7 @@ This is the thesis's Communication/CommInterface pair. A :class:`Transport` is
 shared by the robots that can reach each other through it; each robot opens one
 :class:`Endpoint` on it. Layers never see either: they send to a robot id, the
 robot encodes the message and hands the bytes to its endpoint, and incoming bytes
-come back through a :class:`DatagramSink` (the robot). Addresses are opaque, and
+come back through a :class:`DatagramSink` (the robot's reception). Addresses are opaque, and
 nothing assumes that all robots share a process, so a brokered or multi-host
 backend fits behind the same interface.
 """
@@ -32,7 +32,7 @@ class LossCounter(Protocol):
 
 
 class DatagramSink(LossCounter, Protocol):
-    """What an endpoint delivers to: implemented by :class:`~cas_async._robot.Robot`."""
+    """What an endpoint delivers to: each robot's reception, given to :meth:`Transport.open`."""
 
     def datagram_received(self, data: bytes, sender: RobotId | None = None) -> None:
         """Called with each datagram for this robot, in arrival order.
