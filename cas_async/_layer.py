@@ -35,7 +35,8 @@ from typing import Any, ClassVar, Generic, Self, TypeVar, cast, overload
 from ._clock import Clock
 from ._counters import LayerCounters
 from ._errors import ConfigurationError
-from ._layer_runtime import Detached, LayerRuntime, RobotHandle
+from ._hooks import Detached, RobotHandle
+from ._layer_runtime import LayerRuntime
 from ._logs import PrefixLogger
 from ._message import Message
 from ._types import Level, RobotId

@@ -32,90 +32,23 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Callable, Iterable, Sequence
-from typing import Final, NoReturn, Protocol, final
+from typing import Final, final
 
 from ._channel import Channel
-from ._clock import Clock
 from ._counters import LayerCounters
 from ._errors import RequestTimeout, RobotStateError, RuleViolation, UnknownRobotError
+from ._hooks import Hooks, RobotHandle
 from ._logs import DropLog, PrefixLogger
 from ._message import Message, MsgType
 from ._outbox import Outbox, owned
 from ._requests import PendingRequests, ReplyOutcome
-from ._robot_state import RobotState
 from ._types import Level, RobotId
 
-__all__ = ["Detached", "Hooks", "LayerRuntime", "RobotHandle"]
+__all__ = ["LayerRuntime"]
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
 _NOT_A_REPLY: Final = ReplyOutcome.NOT_A_REPLY
 _DELIVERED: Final = ReplyOutcome.DELIVERED
-
-
-class Hooks(Protocol):
-    """What the runtime calls on the user's layer (see :class:`~cas_async.Layer`)."""
-
-    @property
-    def default_request_timeout(self) -> float:
-        """Simulated seconds a request waits for its reply when given no timeout."""
-
-    async def inner_process(self) -> None:
-        """The layer's own work."""
-
-    async def handle_msg(self, msg: Message) -> None:
-        """An external message."""
-
-    async def store_intra_msg(self, msg: Message) -> None:
-        """An internal ACCEPT or DENY."""
-
-    async def get_intra_msg_reply(self, msg: Message) -> Message | None:
-        """The automatic reply to an internal NEGOTIATION."""
-
-    async def on_restart(self, error: Exception) -> None:
-        """Called before the layer runs again after ``error``."""
-
-    def termination_condition(self) -> bool:
-        """Whether the layer is done."""
-
-
-class RobotHandle(Protocol):
-    """What a layer sees of its robot: its id, clock and state, and how to stop it."""
-
-    @property
-    def robot_id(self) -> RobotId:
-        """The robot's id."""
-
-    @property
-    def clock(self) -> Clock:
-        """The robot's clock."""
-
-    @property
-    def state(self) -> RobotState:
-        """Where the robot is in its lifecycle."""
-
-    def stop(self) -> None:
-        """Asks the robot to stop."""
-
-    def last_heard(self, robot_id: RobotId) -> float | None:
-        """Simulated time of the latest message delivered from ``robot_id``."""
-
-    def inbox_sizes(self) -> tuple[int, ...]:
-        """Messages waiting in each layer's inbox, top first."""
-
-
-@final
-class Detached:
-    """The runtime of a layer not yet given to a robot: every use says so."""
-
-    __slots__ = ("_owner",)
-
-    def __init__(self, owner: str) -> None:
-        self._owner = owner
-
-    def __getattr__(self, name: str) -> NoReturn:
-        raise RobotStateError(
-            f"{self._owner} is not part of a robot yet: give it to a Robot(...) first"
-        )
 
 
 @final
