@@ -161,6 +161,16 @@ class Clock(ABC):
         loop, pad = self._loop_and_pad()
         return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second() + pad
 
+    def loop_deadline_at(self, t: float) -> float:
+        """The event-loop time to arm a timer for simulated instant ``t``.
+
+        Padded like :meth:`loop_deadline`: a timer armed for it finds ``now()`` at
+        or past ``t`` (up to the rounding of one subtraction; see
+        :class:`~cas_async._timers.Timers`, which checks).
+        """
+        _, pad = self._loop_and_pad()
+        return self.loop_time_at(t) + pad
+
     def _loop_and_pad(self) -> tuple[asyncio.AbstractEventLoop, float]:
         """The loop, and its timer pad, also before the clock is started."""
         loop = self._loop

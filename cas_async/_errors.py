@@ -14,6 +14,8 @@ Hierarchy::
     ├── SimulationError           (also ValueError) a motion or simulation input is
     │                             not valid (a non-finite pose, a bad speed profile)
     ├── RequestTimeout            (also TimeoutError) no reply in time
+    │   └── RobotGone             the robot asked is not, or no longer, reachable
+    ├── UnexpectedReply           (also TypeError) a reply of another type than asked for
     └── LayerError                a layer raised; the original is ``__cause__``
 
 Decoding untrusted bytes only ever raises ``DecodeError`` (or its subclass), so
@@ -33,9 +35,11 @@ __all__ = [
     "MessageDefinitionError",
     "RequestTimeout",
     "RobotStateError",
+    "RobotGone",
     "RuleViolation",
     "SimulationError",
     "StackMismatchError",
+    "UnexpectedReply",
     "UnknownRobotError",
 ]
 
@@ -122,6 +126,28 @@ class RequestTimeout(CasError, TimeoutError):
         super().__init__(message)
         self.peer = peer
         self.attempts = attempts
+
+
+class RobotGone(RequestTimeout):
+    """The robot a request was for is not, or is no longer, reachable: it left the swarm.
+
+    Raised as soon as the robot's transport knows: at once for a robot it does not
+    know, and while waiting when the robot leaves; otherwise the request times out.
+    """
+
+
+class UnexpectedReply(CasError, TypeError):
+    """A request was answered with a message of another class than the one asked for.
+
+    Attributes:
+        reply: the message that came back.
+        expected: the class the request asked for (``reply=``).
+    """
+
+    def __init__(self, message: str, reply: object, expected: type) -> None:
+        super().__init__(message)
+        self.reply = reply
+        self.expected = expected
 
 
 class LayerError(CasError):

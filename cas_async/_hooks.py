@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from typing import NoReturn, Protocol, final
 
 from ._clock import Clock
@@ -38,6 +39,18 @@ class Hooks(Protocol):
 
     async def get_intra_msg_reply(self, msg: Message) -> Message | None:
         """The automatic reply to an internal NEGOTIATION."""
+
+    def get_msg_reply(self, msg: Message) -> Message | None:
+        """The reply to an external NEGOTIATION, given on its arrival (``None``: not now)."""
+
+    async def on_timer(self, key: Hashable) -> None:
+        """Timer ``key`` went off."""
+
+    async def on_robot_joined(self, robot_id: RobotId) -> None:
+        """Robot ``robot_id`` can now be reached."""
+
+    async def on_robot_left(self, robot_id: RobotId) -> None:
+        """Robot ``robot_id`` can no longer be reached."""
 
     async def on_restart(self, error: Exception) -> None:
         """Called before the layer runs again after ``error``."""

@@ -29,7 +29,7 @@ object itself) sends a copy, so a message still travelling never changes under i
 
 from __future__ import annotations
 
-from collections.abc import Awaitable, Callable, Iterable, Sequence
+from collections.abc import Awaitable, Callable, Hashable, Iterable, Sequence
 from typing import Any, ClassVar, Generic, Self, TypeVar, cast, overload
 
 from ._clock import Clock
@@ -44,6 +44,7 @@ from ._types import Level, RobotId
 __all__ = ["Layer", "attach", "overrides"]
 
 T = TypeVar("T")
+R = TypeVar("R", bound=Message)
 
 
 class _FromRuntime(Generic[T]):
@@ -105,6 +106,35 @@ class Layer:
         """The automatic reply to an internal NEGOTIATION (``None``: no reply)."""
         return None
 
+    def get_msg_reply(self, msg: Message) -> Message | None:
+        """The reply to an external NEGOTIATION, given the moment it arrives.
+
+        The external twin of ``get_intra_msg_reply``, and synchronous: the runtime
+        calls it on the request's arrival, *even while this layer's task awaits*
+        in another hook (a request of its own, a motion), and sends what it
+        returns as the reply at once. Two robots that ask each other at the same
+        instant are then both answered. Return ``None`` to let the request go to
+        ``handle_msg`` as usual (to answer later with ``reply()``).
+
+        It may run between any two awaits of the layer's other hooks, so it should
+        only read the layer's state (or change what it alone owns); it runs before
+        the messages that arrived earlier and still wait in the inbox.
+        """
+        return None
+
+    async def on_timer(self, key: Hashable) -> None:
+        """Timer ``key`` (set with ``wake_at``/``wake_after``) went off.
+
+        ``clock.now()`` is at or past its instant. ``inner_process()`` runs after
+        the timers of a wake-up, as after a batch of messages.
+        """
+
+    async def on_robot_joined(self, robot_id: RobotId) -> None:
+        """Robot ``robot_id`` joined the swarm: it can be reached from now on."""
+
+    async def on_robot_left(self, robot_id: RobotId) -> None:
+        """Robot ``robot_id`` left the swarm; requests waiting on it have failed (``RobotGone``)."""
+
     async def on_restart(self, error: Exception) -> None:
         """Called before the layer runs again after ``error``, under a restart policy.
 
@@ -142,14 +172,27 @@ class Layer:
 
     # -- timers ----------------------------------------------------------------------
 
-    def wake_after(self, seconds: float) -> None:
-        """Runs ``inner_process()`` again ``seconds`` simulated seconds from now.
+    def wake_at(self, at: float, key: Hashable = None) -> None:
+        """Sets timer ``key`` to go off at simulated instant ``at``; ``on_timer(key)`` is told.
 
-        The event-based way to wait: unlike ``await self.clock.sleep()`` in a hook,
-        the layer keeps handling its messages in the meantime. Each call arms one
-        wake-up; those still pending when the robot stops are cancelled.
+        Arming a key again moves its timer (one timer per key, never stacked); an
+        instant already past goes off at once. The event-based way to wait:
+        unlike ``await self.clock.sleep()`` in a hook, the layer keeps handling
+        its messages meanwhile. Timers still set when the robot stops are disarmed.
         """
-        self._cas.wake_after(seconds)
+        self._cas.wake_at(at, key)
+
+    def wake_after(self, seconds: float, key: Hashable = None) -> None:
+        """Sets timer ``key`` to go off ``seconds`` simulated seconds from now (see ``wake_at``)."""
+        self._cas.wake_after(seconds, key)
+
+    def cancel_wake(self, key: Hashable = None) -> bool:
+        """Disarms timer ``key``; whether it was set (and had not been told yet)."""
+        return self._cas.timers.cancel(key)
+
+    def wake_due(self, key: Hashable = None) -> float | None:
+        """The simulated instant timer ``key`` goes off, ``None`` when it is not set."""
+        return self._cas.timers.due(key)
 
     # -- internal messages -----------------------------------------------------------
 
@@ -172,37 +215,82 @@ class Layer:
     # The request methods return the runtime's coroutine itself: awaiting it is
     # awaiting the request, without a second coroutine frame on every round trip.
 
-    def request_down(self, msg: Message, *, timeout: float | None = None) -> Awaitable[Message]:
-        """Sends a NEGOTIATION to the layer below; awaiting it gives its automatic reply."""
-        cas = self._cas
-        return cas.request_layer(cas.level + 1, msg, timeout)
-
-    def request_up(self, msg: Message, *, timeout: float | None = None) -> Awaitable[Message]:
-        """Sends a NEGOTIATION to the layer above; awaiting it gives its automatic reply."""
-        cas = self._cas
-        return cas.request_layer(cas.level - 1, msg, timeout)
-
-    def request_layer(
-        self, level: Level, msg: Message, *, timeout: float | None = None
+    @overload
+    def request_down(
+        self, msg: Message, *, reply: type[R], timeout: float | None = None
+    ) -> Awaitable[R]: ...
+    @overload
+    def request_down(
+        self, msg: Message, *, reply: None = None, timeout: float | None = None
+    ) -> Awaitable[Message]: ...
+    def request_down(
+        self, msg: Message, *, reply: type[R] | None = None, timeout: float | None = None
     ) -> Awaitable[Message]:
-        """Sends a NEGOTIATION to layer ``level`` of this robot; returns its reply.
+        """Sends a NEGOTIATION to the layer below; awaiting it gives its automatic reply.
 
-        The reply comes from that layer's ``get_intra_msg_reply``.
+        See :meth:`request_layer`.
+        """
+        cas = self._cas
+        return cas.request_layer(cas.level + 1, msg, timeout, reply, neighbour=True)
+
+    @overload
+    def request_up(
+        self, msg: Message, *, reply: type[R], timeout: float | None = None
+    ) -> Awaitable[R]: ...
+    @overload
+    def request_up(
+        self, msg: Message, *, reply: None = None, timeout: float | None = None
+    ) -> Awaitable[Message]: ...
+    def request_up(
+        self, msg: Message, *, reply: type[R] | None = None, timeout: float | None = None
+    ) -> Awaitable[Message]:
+        """Sends a NEGOTIATION to the layer above; awaiting it gives its automatic reply.
+
+        See :meth:`request_layer`.
+        """
+        cas = self._cas
+        return cas.request_layer(cas.level - 1, msg, timeout, reply, neighbour=True)
+
+    @overload
+    def request_layer(
+        self, level: Level, msg: Message, *, reply: type[R], timeout: float | None = None
+    ) -> Awaitable[R]: ...
+    @overload
+    def request_layer(
+        self, level: Level, msg: Message, *, reply: None = None, timeout: float | None = None
+    ) -> Awaitable[Message]: ...
+    def request_layer(
+        self,
+        level: Level,
+        msg: Message,
+        *,
+        reply: type[R] | None = None,
+        timeout: float | None = None,
+    ) -> Awaitable[Message]:
+        """Sends a NEGOTIATION to layer ``level`` of this robot; awaiting it gives the reply.
+
+        The reply comes from that layer's ``get_intra_msg_reply``. With ``reply``,
+        it must be of that class, and type checkers know it is::
+
+            done = await self.request_down(Move(x, y), reply=Moved)  # a Moved
 
         Raises:
             RequestTimeout: no reply in time.
+            UnexpectedReply: the reply is not a ``reply``.
             RuleViolation: ``level`` is this layer's or outside the stack (counted too).
             RobotStateError: the robot stopped while waiting.
         """
-        return self._cas.request_layer(level, msg, timeout)
+        return self._cas.request_layer(level, msg, timeout, reply)
 
     # -- external messages -----------------------------------------------------------
 
     def send(self, robot_id: RobotId, msg: Message) -> None:
         """Sends an external message to the same level of robot ``robot_id``.
 
+        A robot that is not reachable (it left, or never joined) is not an error:
+        the message is dropped and counted as ``unknown_robot``.
+
         Raises:
-            UnknownRobotError: the transport knows no such robot.
             EncodeError: the message cannot be encoded.
             ConfigurationError: the robot has no transport.
         """
@@ -220,7 +308,6 @@ class Layer:
 
         Raises:
             RuleViolation: ``msg`` was not sent by this layer as an external message.
-            UnknownRobotError: the transport knows no such robot.
         """
         self._cas.resend(robot_id, msg)
 
@@ -228,10 +315,10 @@ class Layer:
         """Sends one external message to the same level of several robots.
 
         The message is encoded once. Without ``robots``, it goes to every robot the
-        transport knows besides this one.
+        transport knows besides this one; a listed robot it does not know is counted
+        as ``unknown_robot``.
 
         Raises:
-            UnknownRobotError: after sending to the others, when some robots are unknown.
             ConfigurationError: the robot has no transport.
         """
         self._cas.broadcast(msg, robots)
@@ -244,24 +331,50 @@ class Layer:
         """
         self._cas.reply(request, response)
 
+    @overload
     def request(
         self,
         robot_id: RobotId,
         msg: Message,
         *,
+        reply: type[R],
+        timeout: float | None = None,
+        retries: int = 0,
+    ) -> Awaitable[R]: ...
+    @overload
+    def request(
+        self,
+        robot_id: RobotId,
+        msg: Message,
+        *,
+        reply: None = None,
+        timeout: float | None = None,
+        retries: int = 0,
+    ) -> Awaitable[Message]: ...
+    def request(
+        self,
+        robot_id: RobotId,
+        msg: Message,
+        *,
+        reply: type[R] | None = None,
         timeout: float | None = None,
         retries: int = 0,
     ) -> Awaitable[Message]:
         """Sends a NEGOTIATION to robot ``robot_id``; awaiting it gives the reply.
 
-        The other robot answers from ``handle_msg`` with ``self.reply(msg, response)``.
-        With ``retries``, a request left unanswered for ``timeout`` is sent again,
-        as the same message: the other robot handles it once, and answers a
-        repetition with the reply it already sent (which may have been lost).
+        The other robot answers with its layer's ``get_msg_reply`` (on arrival), or
+        from ``handle_msg`` with ``self.reply(msg, response)``. With ``retries``, a
+        request left unanswered for ``timeout`` is sent again, as the same message:
+        the other robot handles it once, and answers a repetition with the reply
+        it already sent (which may have been lost). With ``reply``, the answer must
+        be of that class, and type checkers know it is::
+
+            pong = await self.request(2, Ping(1), reply=Pong)  # a Pong
 
         Args:
             robot_id: the robot to ask (same level).
             msg: the request; its ``msg_type`` becomes NEGOTIATION.
+            reply: the class the answer must be of (``None``: any message).
             timeout: simulated seconds per attempt; ``default_request_timeout``
                 when ``None``; ``math.inf`` waits as long as it takes.
             retries: how many times to send it again after a timeout; the whole
@@ -270,11 +383,18 @@ class Layer:
         Raises:
             RequestTimeout: no reply to any attempt (the partner went silent);
                 ``attempts`` and ``peer`` say how often and whom it asked.
+            RobotGone: (a ``RequestTimeout``) the robot is not reachable, or left
+                while the request waited.
+            UnexpectedReply: the answer is not a ``reply``.
             RuleViolation: ``robot_id`` is this robot (the drop is counted too).
             RobotStateError: the robot stopped while waiting.
             ValueError: ``retries`` is negative.
         """
-        return self._cas.request(robot_id, msg, timeout, retries)
+        return self._cas.request(robot_id, msg, timeout, retries, reply)
+
+    def knows(self, robot_id: RobotId) -> bool:
+        """Whether robot ``robot_id`` can be reached now (it joined and has not left)."""
+        return self._cas.outbox.knows(robot_id)
 
     def silent_for(self, robot_id: RobotId) -> float:
         """Simulated seconds since a message from robot ``robot_id`` was last delivered.

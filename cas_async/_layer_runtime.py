@@ -17,38 +17,65 @@ What the runtime does for its layer:
   :class:`~cas_async._reception.Reception` accepts arrive in :meth:`accept_external`;
 * **requests**: a reply is matched to its waiting request as it arrives, before
   the inbox, so a layer blocked on ``await request(...)`` still gets its answer;
-* **the loop** (thesis Fig. 10): ``inner_process()`` first, then every pending
-  message in one batch (external ones to ``handle_msg``, internal ones to
-  ``get_intra_msg_reply`` or ``store_intra_msg``), then ``inner_process()``
-  again, until the robot cancels the task;
+  and a layer that overrides ``get_msg_reply`` answers requests *on arrival*,
+  even while its task awaits (so two robots asking each other at once are both
+  answered);
+* **the loop** (thesis Fig. 10): ``inner_process()`` first; then, each time the
+  layer wakes: every pending message in one batch (external ones to
+  ``handle_msg``, internal ones to ``get_intra_msg_reply`` or
+  ``store_intra_msg``), robots that joined or left (``on_robot_joined``,
+  ``on_robot_left``), timers that went off (``on_timer``), and ``inner_process()``
+  again; until the robot cancels the task;
 * **back-pressure**: a send that fills another layer's inbox (see
   :mod:`cas_async._channel`) marks this layer congested; after the hook that
   sent it, this layer waits until that inbox has drained to half its limit;
-* **timers** set with ``wake_after``, cancelled when the robot stops.
+* **timers** (:mod:`cas_async._timers`), disarmed when the robot stops.
 """
 
 from __future__ import annotations
 
 import asyncio
 import math
-from collections.abc import Callable, Iterable, Sequence
-from typing import Final, final
+from collections import deque
+from collections.abc import Callable, Hashable, Iterable, Sequence
+from typing import Final, TypeVar, final
 
 from ._channel import Channel
 from ._counters import LayerCounters
-from ._errors import RequestTimeout, RobotStateError, RuleViolation, UnknownRobotError
+from ._errors import (
+    RequestTimeout,
+    RobotGone,
+    RobotStateError,
+    RuleViolation,
+    UnexpectedReply,
+)
 from ._hooks import Hooks, RobotHandle
 from ._logs import DropLog, PrefixLogger
 from ._message import Message, MsgType
 from ._outbox import Outbox, owned
 from ._requests import PendingRequests, ReplyOutcome
+from ._timers import Timers
 from ._types import Level, RobotId
 
-__all__ = ["LayerRuntime"]
+__all__ = ["LayerRuntime", "Overrides"]
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
 _NOT_A_REPLY: Final = ReplyOutcome.NOT_A_REPLY
 _DELIVERED: Final = ReplyOutcome.DELIVERED
+
+R = TypeVar("R", bound=Message)
+
+
+@final
+class Overrides:
+    """Which optional hooks a layer's class overrides (the others are never called)."""
+
+    __slots__ = ("answers", "inner", "membership")
+
+    def __init__(self, *, inner: bool, answers: bool, membership: bool) -> None:
+        self.inner = inner  # inner_process: runs after each batch
+        self.answers = answers  # get_msg_reply: answers requests on arrival
+        self.membership = membership  # on_robot_joined / on_robot_left
 
 
 @final
@@ -60,21 +87,23 @@ class LayerRuntime:
         robot: the robot, as the layer sees it.
         level: the layer's position in the stack (0 = top).
         name: the layer's class name, for logs and errors.
+        log: the layer's logger.
         outbox: the robot's outbox (external messages and every message id).
         drops: the robot's count of dropped messages.
         queue_limit: pending messages at which the inbox is full.
-        calls_inner: whether ``inner_process`` is overridden (runs after each batch).
+        overrides: which optional hooks the layer overrides.
         on_batch: called after each batch when the layer judges termination.
     """
 
     __slots__ = (
         "above",
         "below",
-        "calls_inner",
         "clock",
         "congested",
         "counters",
         "drops",
+        "events",
+        "failure",
         "inbox",
         "layer",
         "level",
@@ -83,6 +112,7 @@ class LayerRuntime:
         "name",
         "on_batch",
         "outbox",
+        "overrides",
         "requests",
         "robot",
         "stack",
@@ -101,7 +131,7 @@ class LayerRuntime:
         outbox: Outbox,
         drops: DropLog,
         queue_limit: int,
-        calls_inner: bool,
+        overrides: Overrides,
         on_batch: Callable[[LayerRuntime], None] | None,
     ) -> None:
         self.layer = layer
@@ -115,9 +145,12 @@ class LayerRuntime:
         self.counters = LayerCounters()
         self.inbox: Channel[Message] = Channel(queue_limit)
         self.requests = PendingRequests(log.prefix.rstrip(": "), drops.drop)
-        self.calls_inner = calls_inner
+        self.timers = Timers(self.clock, self.inbox.nudge)
+        self.overrides = overrides
         self.on_batch = on_batch
         self.live = False
+        self.events: deque[tuple[bool, RobotId]] = deque()  # (joined?, robot) to tell
+        self.failure: BaseException | None = None  # raised by a hook outside the task
         self.above: LayerRuntime | None = None
         self.below: LayerRuntime | None = None
         self.stack: Sequence[LayerRuntime] = (self,)
@@ -125,7 +158,6 @@ class LayerRuntime:
         # one waits on (for room, or for an answer), to see a cycle of waiting layers.
         self.congested: LayerRuntime | None = None
         self.waiting_on: LayerRuntime | None = None
-        self.timers: set[asyncio.TimerHandle] = set()  # wake_after() still to go off
 
     def link(self, stack: Sequence[LayerRuntime]) -> None:
         """Thesis ConnectLayers: this layer's neighbours in ``stack`` (top first)."""
@@ -140,12 +172,10 @@ class LayerRuntime:
         self.live = True
 
     def close(self) -> None:
-        """The robot stopped: fails the requests still waiting, cancels the timers."""
+        """The robot stopped: fails the requests still waiting, disarms the timers."""
         self.live = False
         self.requests.close()
-        for handle in self.timers:
-            handle.cancel()
-        self.timers.clear()
+        self.timers.close()
 
     def check_live(self) -> None:
         """Raises ``RobotStateError`` unless the robot runs."""
@@ -163,21 +193,13 @@ class LayerRuntime:
 
     def send_up(self, msg: Message) -> None:
         """Sends an internal message to the layer directly above."""
-        if not self.live:
-            self.check_live()
-        if self.above is None:
-            self.violation("no_layer_above", msg)
-            return
-        self.send_internal(self.level - 1, owned(msg))
+        if self.neighbour_ok(self.level - 1, msg):
+            self.send_internal(self.level - 1, owned(msg))
 
     def send_down(self, msg: Message) -> None:
         """Sends an internal message to the layer directly below."""
-        if not self.live:
-            self.check_live()
-        if self.below is None:
-            self.violation("no_layer_below", msg)
-            return
-        self.send_internal(self.level + 1, owned(msg))
+        if self.neighbour_ok(self.level + 1, msg):
+            self.send_internal(self.level + 1, owned(msg))
 
     def send_to_layer(self, level: Level, msg: Message) -> None:
         """Sends an internal message to any other layer of this robot."""
@@ -187,6 +209,18 @@ class LayerRuntime:
         # level_ok() explains and counts the rest.
         if (level != self.level and 0 <= level < len(self.stack)) or self.level_ok(level, msg):
             self.send_internal(level, msg if msg.msg_id == 0 else owned(msg))
+
+    def neighbour_ok(self, level: Level, msg: Message) -> bool:
+        """Whether the robot runs and has a layer at ``level`` (above or below this one).
+
+        If there is none, the drop is counted as ``no_layer_above`` or ``no_layer_below``.
+        """
+        if not self.live:
+            self.check_live()
+        if 0 <= level < len(self.stack):
+            return True
+        self.violation("no_layer_above" if level < self.level else "no_layer_below", msg)
+        return False
 
     def level_ok(self, level: Level, msg: Message) -> bool:
         """Whether ``level`` is another layer of this robot; if not, the drop is counted."""
@@ -239,14 +273,8 @@ class LayerRuntime:
     def resend(self, robot_id: RobotId, msg: Message) -> None:
         """Sends an external message this layer already sent, again and unchanged."""
         self.check_live()
-        if (
-            not (
-                msg.msg_id
-                and msg.robot_id == self.outbox.robot_id
-                and msg.src_layer == msg.dst_layer
-            )
-            or msg.src_layer != self.level
-        ):
+        own = msg.msg_id and msg.robot_id == self.outbox.robot_id
+        if not (own and msg.src_layer == msg.dst_layer == self.level):
             raise RuleViolation(
                 f"{self.log.prefix}resend() needs a message this layer sent, got {msg!r}"
             )
@@ -255,11 +283,7 @@ class LayerRuntime:
     def broadcast(self, msg: Message, robots: Iterable[RobotId] | None) -> None:
         """Sends one external message to the same level of several robots."""
         self.check_live()
-        unknown = self.outbox.broadcast(self.counters, self.level, msg, robots)
-        if unknown:
-            raise UnknownRobotError(
-                f"robot {self.outbox.robot_id}: no address for robots {unknown}"
-            )
+        self.outbox.broadcast(self.counters, self.level, msg, robots)
 
     def reply(self, request: Message, response: Message) -> None:
         """Answers a request: externally to its robot, or internally to its layer."""
@@ -279,7 +303,9 @@ class LayerRuntime:
     def accept_external(self, msg: Message) -> bool:
         """Takes an external message from the robot (already checked for level).
 
-        Returns ``False`` when the inbox was full (the drop is counted).
+        A reply goes to the request waiting for it; a request is answered at once
+        when the layer's ``get_msg_reply`` gives an answer; anything else waits in
+        the inbox. Returns ``False`` when the inbox was full (the drop is counted).
         """
         if msg.corr_id:
             outcome = self.requests.take(msg)
@@ -287,15 +313,54 @@ class LayerRuntime:
                 if outcome is _DELIVERED:
                     self.counters.received_external += 1
                 return True
+        elif self.overrides.answers and msg.msg_type == _NEGOTIATION and self.answer(msg):
+            return True
         if not self.inbox.offer(msg):
             self.drops.drop("queue_full", f"{self.name}(L{self.level}) inbox full, {msg!r}")
             return False
         return True
 
+    def answer(self, msg: Message) -> bool:
+        """Asks ``get_msg_reply`` for the answer to request ``msg``; whether it gave one.
+
+        It runs outside the layer's task (on the message's arrival), so what it
+        raises is kept and raised by the task: the layer fails as from any hook.
+        """
+        if not self.live:
+            return False
+        try:
+            response = self.layer.get_msg_reply(msg)
+        except Exception as exc:
+            self.failure = exc
+            self.inbox.nudge()
+            return True  # the request is spent with the layer
+        if response is None:
+            return False
+        self.counters.received_external += 1
+        self.outbox.reply(self.counters, self.level, msg.robot_id, msg.msg_id, response)
+        return True
+
+    # -- membership ----------------------------------------------------------------------
+
+    def membership_changed(self, robot_id: RobotId, joined: bool) -> None:
+        """Robot ``robot_id`` joined (or left): requests waiting on a robot that left fail."""
+        if not joined:
+            self.requests.fail_peer(
+                robot_id, lambda what: RobotGone(f"{self.log.prefix}robot {robot_id} left: {what}")
+            )
+        if self.live and self.overrides.membership:
+            self.events.append((joined, robot_id))
+            self.inbox.nudge()
+
     # -- requests ------------------------------------------------------------------------
 
     async def request(
-        self, robot_id: RobotId, msg: Message, timeout: float | None, retries: int
+        self,
+        robot_id: RobotId,
+        msg: Message,
+        timeout: float | None,
+        retries: int,
+        reply: type[R] | None,
     ) -> Message:
         """Sends a NEGOTIATION to robot ``robot_id`` and returns its reply (see ``Layer``)."""
         if not self.live:
@@ -310,12 +375,22 @@ class LayerRuntime:
         msg_id = msg.msg_id
         attempt = 0
         while True:
-            reply = self.expect(msg, robot_id, True, timeout)
+            attempt += 1
+            if not self.outbox.knows(robot_id):
+                raise RobotGone(
+                    f"{self.log.prefix}robot {robot_id} is not reachable (asked "
+                    f"{type(msg).__name__} #{msg_id}, attempt {attempt})",
+                    robot_id,
+                    attempt,
+                )
+            waiting = self.expect(msg, robot_id, True, timeout)
             try:
                 self.outbox.transmit(self.counters, robot_id, data, msg.__class__)
-                return await reply
+                return self.checked(await waiting, reply, msg)
+            except RobotGone as exc:
+                exc.peer, exc.attempts = robot_id, attempt
+                raise
             except RequestTimeout as exc:
-                attempt += 1
                 if attempt > retries:
                     if retries:
                         exc.args = (f"{exc} ({attempt} attempts)",)
@@ -324,15 +399,29 @@ class LayerRuntime:
             finally:
                 self.requests.forget(msg_id)
 
-    async def request_layer(self, level: Level, msg: Message, timeout: float | None) -> Message:
-        """Sends a NEGOTIATION to layer ``level`` of this robot; returns its reply."""
-        self.check_live()
-        if not self.level_ok(level, msg):
-            raise RuleViolation(f"{self.log.prefix}no layer {level} to ask")
+    async def request_layer(
+        self,
+        level: Level,
+        msg: Message,
+        timeout: float | None,
+        reply: type[R] | None,
+        *,
+        neighbour: bool = False,
+    ) -> Message:
+        """Sends a NEGOTIATION to layer ``level`` of this robot; returns its reply.
+
+        ``neighbour``: asked as the layer above or below (``request_up``/``_down``),
+        so a missing one is counted as ``send_up``/``send_down`` count it.
+        """
+        if not self.live:
+            self.check_live()
+        if not (self.neighbour_ok(level, msg) if neighbour else self.level_ok(level, msg)):
+            where = ("above" if level < self.level else "below") if neighbour else f"{level}"
+            raise RuleViolation(f"{self.log.prefix}no layer {where} to ask")
         msg = owned(msg)
         msg.msg_type = _NEGOTIATION
         self.outbox.stamp(msg, self.level, level)
-        reply = self.expect(msg, self.outbox.robot_id, False, timeout)
+        waiting = self.expect(msg, self.outbox.robot_id, False, timeout)
         counters = self.counters
         counters.sent_internal += 1
         by_type = counters.internal_by_type
@@ -343,7 +432,7 @@ class LayerRuntime:
         self.waiting_on = self.stack[level]
         self.inbox.release_room_waiters()
         try:
-            return await reply
+            return self.checked(await waiting, reply, msg)
         finally:
             self.waiting_on = None
             self.requests.forget(msg.msg_id)
@@ -356,23 +445,32 @@ class LayerRuntime:
         deadline = self.clock.loop_deadline(seconds)
         return self.requests.expect(msg, peer, external, seconds, deadline)
 
+    def checked(self, answer: Message, expected: type[Message] | None, asked: Message) -> Message:
+        """``answer``, if it is of the class the request asked for.
+
+        Raises:
+            UnexpectedReply: naming both classes.
+        """
+        if expected is None or isinstance(answer, expected):
+            return answer
+        raise UnexpectedReply(
+            f"{self.log.prefix}asked {type(asked).__name__} #{asked.msg_id} for a "
+            f"{expected.__name__} reply, got a {type(answer).__name__}: {answer!r}",
+            answer,
+            expected,
+        )
+
     # -- timers --------------------------------------------------------------------------
 
-    def wake_after(self, seconds: float) -> None:
-        """Runs ``inner_process()`` again ``seconds`` simulated seconds from now."""
+    def wake_at(self, at: float, key: Hashable) -> None:
+        """Sets timer ``key`` for simulated instant ``at`` (see :mod:`cas_async._timers`)."""
         self.check_live()
-        loop = asyncio.get_running_loop()
-        timers = self.timers
-        handle: asyncio.TimerHandle | None = None
+        self.timers.arm(key, at)
 
-        def wake() -> None:
-            nonlocal handle
-            timers.discard(handle)
-            handle = None  # wake and its handle refer to each other: no cycle left to collect
-            self.inbox.nudge()
-
-        handle = loop.call_at(self.clock.loop_deadline(seconds), wake)
-        timers.add(handle)
+    def wake_after(self, seconds: float, key: Hashable) -> None:
+        """Sets timer ``key`` for ``seconds`` simulated seconds from now."""
+        self.check_live()
+        self.timers.arm(key, self.clock.now() + max(0.0, seconds))
 
     # -- the loop ------------------------------------------------------------------------
 
@@ -382,8 +480,9 @@ class LayerRuntime:
         inbox = self.inbox
         pop = inbox.pop
         counters = self.counters
-        calls_inner = self.calls_inner
+        calls_inner = self.overrides.inner
         on_batch = self.on_batch
+        timers = self.timers
         await layer.inner_process()
         if self.congested is not None:
             await self.wait_for_room()
@@ -393,6 +492,9 @@ class LayerRuntime:
             msg = pop()
             if msg is None:
                 await inbox.wait()
+                if self.failure is not None:
+                    failure, self.failure = self.failure, None
+                    raise failure
                 msg = pop()
             while msg is not None:  # every message here is for this layer: forwarding is done
                 if msg.src_layer == msg.dst_layer:
@@ -409,12 +511,28 @@ class LayerRuntime:
                 if self.congested is not None:
                     await self.wait_for_room()
                 msg = pop()
+            await self.tell_events()
+            if timers:
+                for key in timers.take_fired():
+                    await layer.on_timer(key)
+                    if self.congested is not None:
+                        await self.wait_for_room()
             if calls_inner:
                 await layer.inner_process()
                 if self.congested is not None:
                     await self.wait_for_room()
             if on_batch is not None:
                 on_batch(self)
+
+    async def tell_events(self) -> None:
+        """Tells the layer of the robots that joined or left, in order."""
+        events = self.events
+        while events:
+            joined, robot_id = events.popleft()
+            if joined:
+                await self.layer.on_robot_joined(robot_id)
+            else:
+                await self.layer.on_robot_left(robot_id)
 
     async def wait_for_room(self) -> None:
         """Waits while a layer that this one filled drains to half its limit.

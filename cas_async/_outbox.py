@@ -166,9 +166,11 @@ class Outbox:
         when the message is encoded before this returns; a codec that passes
         objects sends a copy of one sent before.
 
+        A robot the transport does not know (it left, or never joined) is not an
+        error: the message is dropped and counted as ``unknown_robot``.
+
         Raises:
             RobotStateError: the robot does not run.
-            UnknownRobotError: the transport knows no such robot.
             EncodeError: the message cannot be encoded.
             ConfigurationError: the robot has no transport.
         """
@@ -184,7 +186,11 @@ class Outbox:
         msg.robot_id = self.robot_id
         msg.src_layer = msg.dst_layer = sender.level
         msg.corr_id = 0
-        self._endpoint.send(robot_id, codec.encode(msg))
+        try:
+            self._endpoint.send(robot_id, codec.encode(msg))
+        except UnknownRobotError as exc:
+            self._drops.drop("unknown_robot", f"{type(msg).__name__}: {exc}")
+            return
         counters = sender.counters
         counters.sent_external += 1
         by_type = counters.external_by_type
@@ -213,31 +219,25 @@ class Outbox:
         level: Level,
         msg: Message,
         robots: Iterable[RobotId] | None,
-    ) -> list[RobotId]:
+    ) -> None:
         """Sends one message to several robots (every known one when ``robots`` is ``None``).
 
-        Encoded once; with a codec that passes objects, each receiver gets its own copy.
-        Returns the robots that were not sent to because the transport knows none such.
+        Encoded once; with a codec that passes objects, each receiver gets its own
+        copy. A robot the transport does not know is counted as ``unknown_robot``.
         """
         codec, endpoint = self._codec, self._endpoint
         if codec.passes_objects:
             msg = owned(msg)  # receivers may still hold it
         self.stamp(msg, level, level)
         data = codec.encode(msg)
-        unknown: list[RobotId] = []
-        sent = 0
+        first = True
         for robot_id in endpoint.peers() if robots is None else robots:
             if robot_id == self.robot_id:
                 continue
-            if sent and codec.passes_objects:  # each receiver gets a message of its own
+            if not first and codec.passes_objects:  # each receiver gets a message of its own
                 data = codec.encode(copy.copy(msg))
-            try:
-                self.transmit(counters, robot_id, data, msg.__class__)
-            except UnknownRobotError:
-                unknown.append(robot_id)
-            else:
-                sent += 1
-        return unknown
+            first = False
+            self.transmit(counters, robot_id, data, msg.__class__)
 
     def reply(
         self,
@@ -260,10 +260,7 @@ class Outbox:
         response.corr_id = request_id
         data = self._codec.encode(response)
         self._replies.keep(asker, request_id, data)
-        try:
-            self.transmit(counters, asker, data, response.__class__)
-        except (UnknownRobotError, RobotStateError) as exc:
-            self._drops.drop("reply_undeliverable", str(exc))
+        self.transmit(counters, asker, data, response.__class__, unknown="reply_undeliverable")
 
     def resend_reply(self, asker: RobotId, request_id: int) -> None:
         """Answers a repeated request with the reply kept for it, if any (not counted as sent)."""
@@ -273,19 +270,30 @@ class Outbox:
         self.replies_resent += 1
         try:
             self._endpoint.send(asker, data)
-        except (UnknownRobotError, RobotStateError) as exc:
+        except UnknownRobotError as exc:
             self._drops.drop("reply_undeliverable", str(exc))
 
     def transmit(
-        self, counters: LayerCounters, robot_id: RobotId, data: bytes, kind: type[Message]
+        self,
+        counters: LayerCounters,
+        robot_id: RobotId,
+        data: bytes,
+        kind: type[Message],
+        *,
+        unknown: str = "unknown_robot",
     ) -> None:
         """Sends an encoded message of class ``kind`` and counts it.
 
         Every external message but a plain ``send`` (which inlines the same steps)
         leaves the robot here: each attempt of a request, a reply, a resend, each
-        copy of a broadcast.
+        copy of a broadcast. A robot the transport does not know is a drop counted
+        under ``unknown``, never an error.
         """
-        self._endpoint.send(robot_id, data)
+        try:
+            self._endpoint.send(robot_id, data)
+        except UnknownRobotError as exc:
+            self._drops.drop(unknown, f"{kind.__name__}: {exc}")
+            return
         counters.sent_external += 1
         by_type = counters.external_by_type
         by_type[kind] = by_type.get(kind, 0) + 1

@@ -154,6 +154,20 @@ class Reception:
             self._outbox.resend_reply(msg.robot_id, msg.msg_id)
         self._drops.drop("duplicate", f"{msg!r} was delivered before")
 
+    def robot_joined(self, robot_id: RobotId) -> None:
+        """The transport can reach robot ``robot_id`` from now on: the layers are told."""
+        if robot_id == self._robot_id:
+            return
+        for layer in self._layers:
+            layer.membership_changed(robot_id, joined=True)
+
+    def robot_left(self, robot_id: RobotId) -> None:
+        """The transport can no longer reach ``robot_id``: requests to it fail, layers are told."""
+        if robot_id == self._robot_id:
+            return
+        for layer in self._layers:
+            layer.membership_changed(robot_id, joined=False)
+
     def transport_dropped(self, reason: str, detail: str) -> None:
         """Counts what the transport lost or refused, as ``transport.<reason>``."""
         self._drops.drop(f"transport.{reason}", detail)

@@ -163,6 +163,13 @@ class PendingRequests:
             )
         )
 
+    def fail_peer(self, peer: RobotId, error: Callable[[str], Exception]) -> None:
+        """Fails every external request waiting on robot ``peer`` (it left) with ``error(what)``."""
+        for msg_id, waiter in list(self._waiting.items()):
+            if waiter.external and waiter.peer == peer and not waiter.future.done():
+                _remember(self._expired, msg_id)
+                waiter.future.set_exception(error(waiter.what))
+
     def close(self) -> None:
         """The robot stopped: disarms the timer and fails every request still waiting."""
         if self._deadlines is not None:

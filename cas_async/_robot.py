@@ -33,7 +33,7 @@ from ._counters import LayerCounters
 from ._errors import ConfigurationError, RobotStateError
 from ._fingerprint import stack_fingerprint
 from ._layer import Layer, attach, overrides
-from ._layer_runtime import LayerRuntime
+from ._layer_runtime import LayerRuntime, Overrides
 from ._logs import DropLog, logger_for
 from ._message import Message, specs_for
 from ._outbox import Outbox
@@ -133,7 +133,11 @@ class Robot:
             outbox=self._outbox,
             drops=self._drops,
             queue_limit=self.queue_limit,
-            calls_inner=overrides(layer, "inner_process"),
+            overrides=Overrides(
+                inner=overrides(layer, "inner_process"),
+                answers=overrides(layer, "get_msg_reply"),
+                membership=overrides(layer, "on_robot_joined") or overrides(layer, "on_robot_left"),
+            ),
             on_batch=self._layer_may_be_done if judges else None,
         )
         if judges:

@@ -32,6 +32,12 @@ class Tap(Transport):
             def transport_dropped(self, reason: str, detail: str) -> None:
                 sink.transport_dropped(reason, detail)
 
+            def robot_joined(self, robot_id: RobotId) -> None:
+                sink.robot_joined(robot_id)
+
+            def robot_left(self, robot_id: RobotId) -> None:
+                sink.robot_left(robot_id)
+
         return await self.inner.open(robot_id, Recording())
 
     def wire_codec(self, robot_id: RobotId, codec: Codec) -> WireCodec:

@@ -58,6 +58,12 @@ class RecordingSink:
     def transport_dropped(self, reason: str, detail: str) -> None:
         self.dropped.append((reason, detail))
 
+    def robot_joined(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
+    def robot_left(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
     @property
     def reasons(self) -> list[str]:
         return [reason for reason, _ in self.dropped]

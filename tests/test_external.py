@@ -19,7 +19,6 @@ from cas_async import (
     RequestTimeout,
     Robot,
     UdpTransport,
-    UnknownRobotError,
     VirtualClock,
     message,
     spec_of,
@@ -127,15 +126,18 @@ async def test_broadcast_reaches_every_other_robot_once(start_robot, transport) 
     assert not stacks[1][1].external
     assert [len(stacks[r][1].external) for r in (2, 3, 4)] == [1, 1, 1]
     assert stacks[1][1].counters.sent_external == 3
-    with pytest.raises(UnknownRobotError, match=r"no address for robots \[9\]"):
-        stacks[1][0].broadcast(Note("x", []), robots=[2, 9])
+    robot = await start_robot(5, recorders(2), transport=transport)
+    stacks[1][0].broadcast(Note("x", []), robots=[2, 9])  # 9 is nobody: counted, not raised
+    assert stacks[1][0].counters.sent_external == 1
+    assert robot.dropped == {}
 
 
-async def test_sending_to_an_unknown_robot_raises(start_robot, transport) -> None:
+async def test_sending_to_an_unknown_robot_is_dropped_and_counted(start_robot, transport) -> None:
     stack = recorders(1)
-    await start_robot(1, stack, transport=transport)
-    with pytest.raises(UnknownRobotError, match="robot 99"):
-        stack[0].send(99, Note("?", []))
+    robot = await start_robot(1, stack, transport=transport)
+    stack[0].send(99, Note("?", []))  # never raised in the sender's hook
+    assert robot.dropped == {"unknown_robot": 1}
+    assert stack[0].counters.sent_external == 0
 
 
 @message

@@ -43,6 +43,12 @@ class RecordingSink:
     def transport_dropped(self, reason: str, detail: str) -> None:
         self.dropped.append(reason)
 
+    def robot_joined(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
+    def robot_left(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
     @property
     def received(self) -> list[bytes]:
         return [data for _, data, _ in self.arrivals]

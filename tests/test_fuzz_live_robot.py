@@ -263,6 +263,12 @@ def test_mission_completes_under_20k_hostile_datagrams_in_memory_on_virtual_time
         def transport_dropped(self, reason: str, detail: str) -> None:
             raise AssertionError(f"lost on the way to the attacker: {reason}")
 
+        def robot_joined(self, robot_id: int) -> None:
+            """Membership news: not what these tests look at."""
+
+        def robot_left(self, robot_id: int) -> None:
+            """Membership news: not what these tests look at."""
+
     async def main() -> dict[str, Counter[str]]:
         transport = MemoryTransport()
         asker = Asker()

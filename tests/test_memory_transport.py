@@ -32,6 +32,12 @@ class Sink:
     def transport_dropped(self, reason: str, detail: str) -> None:
         raise AssertionError(f"nothing should be dropped: {reason} {detail}")
 
+    def robot_joined(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
+    def robot_left(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
 
 async def _open(memory: MemoryTransport, robot_id: int) -> Sink:
     sink = Sink()

@@ -25,7 +25,6 @@ from cas_async import (
     RuleViolation,
     Swarm,
     Transport,
-    UnknownRobotError,
     VirtualClock,
 )
 from cas_async.transport import Codec
@@ -221,17 +220,17 @@ def test_resend_counts_as_an_external_message_sent() -> None:
     assert by_class["external"] == {"Note": 3}
 
 
-def test_a_resend_to_an_unknown_robot_raises_and_counts_nothing() -> None:
+def test_a_resend_to_an_unknown_robot_is_dropped_and_counted() -> None:
     async def main(clock: VirtualClock) -> dict[str, int]:
         sender, _, robots = pair(MemoryTransport(), clock)
         async with Swarm(robots):
             note = Note("x", [])
             sender.send(2, note)
-            with pytest.raises(UnknownRobotError, match="no robot 9"):
-                sender.resend(9, note)
+            sender.resend(9, note)
         return robots[0].counters()
 
-    assert on_virtual_time(main)["sent_external"] == 1
+    counts = on_virtual_time(main)
+    assert (counts["sent_external"], counts["dropped.unknown_robot"]) == (1, 1)
 
 
 # -- what may be resent ---------------------------------------------------------------------

@@ -60,6 +60,12 @@ class RecordingSink:
     def transport_dropped(self, reason: str, detail: str) -> None:
         self.dropped.append((reason, detail))
 
+    def robot_joined(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
+    def robot_left(self, robot_id: int) -> None:
+        """Membership news: not what these tests look at."""
+
     def count(self, reason: str) -> int:
         return sum(1 for r, _ in self.dropped if r == reason)
 

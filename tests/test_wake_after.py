@@ -1,4 +1,4 @@
-"""wake_after(): a timer that runs inner_process() again without blocking the layer."""
+"""wake_after(): timers that run inner_process() again without blocking the layer."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from tests.stacks import STACK_MESSAGES, Query, Recorder
 
 
 class Ticker(Recorder):
-    """Asks to be woken twice; notes when inner_process runs and when messages come."""
+    """Asks to be woken twice (two keys); notes when inner_process runs and messages come."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -23,8 +23,8 @@ class Ticker(Recorder):
         await super().inner_process()
         self.runs.append(self.clock.now())
         if self.inner_calls == 1:
-            self.wake_after(10.0)
-            self.wake_after(25.0)
+            self.wake_after(10.0, "first")
+            self.wake_after(25.0, "second")
 
     async def handle_msg(self, msg: object) -> None:
         self.handled.append(self.clock.now())

@@ -304,3 +304,9 @@ class _Verifier:
 
     def transport_dropped(self, reason: str, detail: str) -> None:
         self._sink.transport_dropped(reason, detail)
+
+    def robot_joined(self, robot_id: RobotId) -> None:
+        self._sink.robot_joined(robot_id)
+
+    def robot_left(self, robot_id: RobotId) -> None:
+        self._sink.robot_left(robot_id)

@@ -42,6 +42,16 @@ class DatagramSink(LossCounter, Protocol):
         datagram whose header claims another robot is a spoof and is refused.
         """
 
+    def robot_joined(self, robot_id: RobotId) -> None:
+        """Robot ``robot_id`` can be reached through the transport from now on.
+
+        Transports that learn of robots coming and going (in-process ones, a
+        directory, a discovery service) say so; static ones need not.
+        """
+
+    def robot_left(self, robot_id: RobotId) -> None:
+        """Robot ``robot_id`` can no longer be reached through the transport."""
+
 
 def drop_socket_error(sink: LossCounter, exc: Exception) -> None:
     """Counts a datagram lost to a socket error (counted as ``transport.socket_error``).

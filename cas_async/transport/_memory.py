@@ -16,6 +16,9 @@ The endpoints below do not look at what they carry.
 A datagram in flight when its receiver closes is still handed to the receiver's
 sink, which decides what it means: a stopped robot counts it as ``"not_running"``.
 Nothing sent is lost without a count.
+
+Membership: when a robot opens its endpoint, every robot already on the
+transport is told it joined; when it closes, the others are told it left.
 """
 
 from __future__ import annotations
@@ -99,8 +102,19 @@ class MemoryEndpoint(Endpoint):
     def close(self) -> None:
         if not self._closed:
             self._closed = True
-            if self._network._endpoints.get(self.robot_id) is self:
-                del self._network._endpoints[self.robot_id]
+            endpoints = self._network._endpoints
+            if endpoints.get(self.robot_id) is self:
+                del endpoints[self.robot_id]
+                for other in endpoints.values():
+                    other.told_left(self.robot_id)
+
+    def told_joined(self, robot_id: RobotId) -> None:
+        """Tells this robot that ``robot_id`` is on the transport from now on."""
+        self._sink.robot_joined(robot_id)
+
+    def told_left(self, robot_id: RobotId) -> None:
+        """Tells this robot that ``robot_id`` left the transport."""
+        self._sink.robot_left(robot_id)
 
 
 @final
@@ -131,6 +145,8 @@ class MemoryTransport(Transport):
             raise ConfigurationError(
                 f"robot {robot_id} is already attached to this MemoryTransport"
             )
+        for other in self._endpoints.values():
+            other.told_joined(robot_id)
         endpoint = self._endpoints[robot_id] = MemoryEndpoint(self, robot_id, sink)
         return endpoint
 

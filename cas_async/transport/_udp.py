@@ -66,6 +66,7 @@ class UdpDirectory:
         # Source address -> robot: how a received datagram's sender is known. IPv6
         # source addresses come as (host, port, flowinfo, scope_id).
         self._senders: dict[tuple[Any, ...], RobotId] = {}
+        self._watchers: list[DatagramSink] = []  # told when a robot is entered or removed
         for robot_id, (host, port) in (addresses or {}).items():
             self.add(robot_id, host, port)
 
@@ -87,18 +88,38 @@ class UdpDirectory:
             ) from None
         if not isinstance(port, int) or not 0 <= port <= 65535:
             raise ConfigurationError(f"robot {robot_id}: port must be in 0..65535, got {port!r}")
-        self.remove(robot_id)
+        new = robot_id not in self._addresses
+        self._forget(robot_id)
         self._addresses[robot_id] = (host, port)
         for source in _source_forms(host, port):
             self._senders[source] = robot_id
+        if new:
+            for watcher in list(self._watchers):
+                watcher.robot_joined(robot_id)
 
     def remove(self, robot_id: RobotId) -> None:
         """Forgets ``robot_id``; no error when unknown."""
+        if self._forget(robot_id):
+            for watcher in list(self._watchers):
+                watcher.robot_left(robot_id)
+
+    def _forget(self, robot_id: RobotId) -> bool:
         old = self._addresses.pop(robot_id, None)
-        if old is not None:
-            for source in _source_forms(*old):
-                if self._senders.get(source) == robot_id:
-                    del self._senders[source]
+        if old is None:
+            return False
+        for source in _source_forms(*old):
+            if self._senders.get(source) == robot_id:
+                del self._senders[source]
+        return True
+
+    def watch(self, sink: DatagramSink) -> None:
+        """Tells ``sink`` of every robot entered (``robot_joined``) or removed (``robot_left``)."""
+        self._watchers.append(sink)
+
+    def unwatch(self, sink: DatagramSink) -> None:
+        """Stops telling ``sink``; no error when it was not watching."""
+        if sink in self._watchers:
+            self._watchers.remove(sink)
 
     def sender(self, source: Any) -> RobotId | None:
         """The robot listening at ``source`` (an address a datagram came from), or ``None``."""
@@ -241,6 +262,7 @@ class UdpEndpoint(Endpoint):
             return
         self._closed = True
         self._transport.close()
+        self._directory.unwatch(self._sink)
         if self._registered is not None and self._directory.get(self.robot_id) == self._registered:
             if self._configured is None:
                 self._directory.remove(self.robot_id)
@@ -309,6 +331,7 @@ class UdpTransport(Transport):
         if configured is None or configured[1] == 0:
             registered = (host, port)
             self.directory.add(robot_id, host, port)
+        self.directory.watch(sink)
         endpoint = self._open[robot_id] = UdpEndpoint(
             robot_id,
             transport,
