@@ -68,14 +68,32 @@ class _FromRuntime(Generic[T]):
         return self._read(layer._cas)
 
 
+class _RequestTimeout(float):
+    """Simulated seconds a request waits for its reply when given no timeout (default 5).
+
+    A class attribute of :class:`Layer`: set ``default_request_timeout = 2.0`` (or
+    ``math.inf``) in a subclass to change it for all its requests.
+    """
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return float.__repr__(self)
+
+
 class Layer:
     """Base class of every layer. Subclasses override the hooks; see the module docs.
 
     A layer instance belongs to one robot. The runtime is attached when the robot
     is created, so subclasses may define ``__init__`` without calling ``super()``.
+
+    Attributes:
+        default_request_timeout: simulated seconds a request waits for its reply
+            when given no timeout (5 s); set it in a subclass, e.g. to ``math.inf``
+            for requests that wait for a physical action.
     """
 
-    default_request_timeout: ClassVar[float] = 5.0
+    default_request_timeout: ClassVar[float] = _RequestTimeout(5.0)
     """Simulated seconds a request waits for its reply when no timeout is given."""
 
     _cas: LayerRuntime

@@ -71,17 +71,37 @@ class Message:
     dst_layer: int = 0
     corr_id: int = 0
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        # Zero-argument super() fails here: slots=True remade this class after the
+        # method was compiled against the first one.
+        super(Message, cls).__init_subclass__(**kwargs)
+        # Until @message makes the class a dataclass, constructing one says what is
+        # missing (instead of Message.__init__ refusing the first field by name).
+        if "__init__" not in cls.__dict__:
+            cls.__init__ = _undecorated_init  # type: ignore[method-assign]
+
     def __repr__(self) -> str:
         spec = _by_class.get(type(self))
         names = spec.field_names if spec is not None else ()
         body = ", ".join(f"{name}={getattr(self, name)!r}" for name in names)
+        kind = getattr(self.msg_type, "name", self.msg_type)
+        if not self.msg_id:  # not stamped: the header means nothing yet
+            return f"{type(self).__name__}({body}) [not sent, {kind}]"
         return (
             f"{type(self).__name__}({body}) "
-            f"[#{self.msg_id} {getattr(self.msg_type, 'name', self.msg_type)} "
-            f"robot {self.robot_id} "
+            f"[#{self.msg_id} {kind} robot {self.robot_id} "
             f"L{self.src_layer}->L{self.dst_layer}"
             + (f" reply to #{self.corr_id}]" if self.corr_id else "]")
         )
+
+
+def _undecorated_init(self: Message, *args: Any, **kwargs: Any) -> None:
+    cls = type(self)
+    raise MessageDefinitionError(
+        f"{cls.__module__}.{cls.__qualname__} is a Message subclass without @message: "
+        "decorate the class with @message (from cas_async import message) so that its "
+        "annotated fields become the message's fields"
+    )
 
 
 M = TypeVar("M", bound=Message)
@@ -182,6 +202,8 @@ def message(
         # Before dataclass(): a header name redeclared with a default makes it fail first.
         for clash in sorted(set(inspect.get_annotations(klass)) & set(HEADER_FIELDS)):
             raise MessageDefinitionError(f"{where}.{clash}: the name is taken by the header")
+        if klass.__dict__.get("__init__") is _undecorated_init:
+            del klass.__init__  # dataclass() writes the real one only where none is
         try:
             made = dataclasses.dataclass(slots=True, repr=False)(klass)
         except (TypeError, ValueError) as exc:  # field order, @message applied twice...

@@ -1,4 +1,4 @@
-"""``Swarm``: starts, runs and stops a set of robots together.
+"""``Swarm``: starts, runs and stops a set of robots together; robots join and leave it.
 
 Robots started one by one could message a robot whose endpoint is not open yet.
 A swarm opens every robot's endpoint first, then starts every robot's layers::
@@ -6,8 +6,14 @@ A swarm opens every robot's endpoint first, then starts every robot's layers::
     async with Swarm(robots) as swarm:
         await swarm.run()      # until every robot's run() would return
 
+While it runs, ``await swarm.add(robot)`` starts another robot and ``await
+swarm.remove(robot_id)`` stops one; the others' transports tell their layers
+(``on_robot_joined``/``on_robot_left``), a message to a robot that left is
+dropped and counted (``unknown_robot``), and a request waiting on it fails with
+:class:`~cas_async.RobotGone`.
+
 When a robot fails, the others are stopped and ``run()`` raises its
-:class:`~cas_async._errors.LayerError`.
+:class:`~cas_async.LayerError`.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import asyncio
 from collections.abc import Iterable, Iterator
 from typing import final
 
-from ._errors import ConfigurationError, RobotStateError
+from ._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from ._robot import Robot
 from ._robot_state import RobotState
 from ._types import RobotId
@@ -24,26 +30,55 @@ from ._types import RobotId
 __all__ = ["Swarm"]
 
 
+def _same_time(first: Robot, other: Robot) -> None:
+    """Refuses robots whose clocks do not keep one time (see :class:`Swarm`)."""
+    a, b = first.clock, other.clock
+    if a is b or (type(a) is type(b) and a.time_factor == b.time_factor):
+        return
+    raise ConfigurationError(
+        f"swarm: robot {first.robot_id} runs on {a!r} and robot {other.robot_id} on {b!r}; "
+        "robots of one swarm share one simulated time: give them the same clock object"
+    )
+
+
 @final
 class Swarm:
     """A set of robots with one lifecycle.
 
+    Robots of a swarm share one simulated time: their clocks must be one clock
+    object or clocks of the same kind and time factor (robots created without a
+    clock each get ``ScaledClock(1.0)``, which is fine).
+
     Args:
         robots: the robots; their ids must be unique.
+
+    Raises:
+        ConfigurationError: two robots have one id, or clocks that keep different times.
     """
 
     def __init__(self, robots: Iterable[Robot]) -> None:
         self._robots: dict[RobotId, Robot] = {}
+        self._running = False
+        self._changed = asyncio.Event()  # a robot joined or left: run() looks again
         for robot in robots:
-            if robot.robot_id in self._robots:
-                raise ConfigurationError(f"swarm: two robots with id {robot.robot_id}")
-            self._robots[robot.robot_id] = robot
+            self._admit(robot)
+
+    def _admit(self, robot: Robot) -> None:
+        if robot.robot_id in self._robots:
+            raise ConfigurationError(f"swarm: two robots with id {robot.robot_id}")
+        for first in self._robots.values():
+            _same_time(first, robot)
+            break
+        self._robots[robot.robot_id] = robot
 
     def __iter__(self) -> Iterator[Robot]:
-        return iter(self._robots.values())
+        return iter(list(self._robots.values()))
 
     def __len__(self) -> int:
         return len(self._robots)
+
+    def __contains__(self, robot_id: object) -> bool:
+        return robot_id in self._robots
 
     def __getitem__(self, robot_id: RobotId) -> Robot:
         return self._robots[robot_id]
@@ -66,6 +101,8 @@ class Swarm:
                     into[name] = into.get(name, 0) + n
         return total
 
+    # -- lifecycle ---------------------------------------------------------------------
+
     async def __aenter__(self) -> Swarm:
         """Opens every robot's endpoint, then starts every robot's layers."""
         opened: list[Robot] = []
@@ -79,6 +116,7 @@ class Swarm:
             raise
         for robot in self:
             robot.start()
+        self._running = True
         return self
 
     async def __aexit__(
@@ -90,6 +128,7 @@ class Swarm:
         is gone. Raises the first layer failure that ``run()`` did not raise; the
         others are attached to it as notes.
         """
+        self._running = False
         running = [robot for robot in self if robot.state is RobotState.RUNNING]
         for robot in running:
             robot.stop()
@@ -108,28 +147,98 @@ class Swarm:
                 first.add_note(f"also {other}")
             raise first
 
+    # -- membership --------------------------------------------------------------------
+
+    async def add(self, robot: Robot) -> None:
+        """Adds ``robot``; in a running swarm it is opened and started at once.
+
+        The robots already there learn that it joined from their transport.
+
+        Raises:
+            ConfigurationError: its id is taken, or its clock keeps another time.
+        """
+        self._admit(robot)
+        if self._running:
+            try:
+                await robot.open()
+            except BaseException:
+                del self._robots[robot.robot_id]
+                raise
+            robot.start()
+        self._changed.set()
+
+    async def remove(self, robot_id: RobotId) -> Robot:
+        """Takes robot ``robot_id`` out; a running one is stopped and closed, and returned.
+
+        The others learn that it left from their transport: what they send it from
+        now on is dropped and counted (``unknown_robot``), and requests waiting on
+        it fail with :class:`~cas_async.RobotGone`.
+
+        Raises:
+            UnknownRobotError: no robot of this swarm has that id.
+            LayerError: one of its layers had failed.
+        """
+        robot = self._robots.pop(robot_id, None)
+        if robot is None:
+            raise UnknownRobotError(f"swarm: no robot {robot_id} to remove")
+        self._changed.set()
+        if robot.state is RobotState.RUNNING:
+            robot.stop()
+            try:
+                await robot.halt()
+            finally:
+                robot.close()
+            failure = robot.take_failure()
+            if failure is not None:
+                raise failure
+        elif robot.state is RobotState.OPEN:
+            robot.close()
+        return robot
+
+    # -- running -----------------------------------------------------------------------
+
     async def run(self) -> None:
-        """Waits until every robot's ``run()`` returns.
+        """Waits until every robot's ``run()`` returns (robots added meanwhile included).
 
         Raises:
             LayerError: a robot failed; every robot was asked to stop.
             RobotStateError: the swarm was not started.
         """
-        if any(robot.state is not RobotState.RUNNING for robot in self):
+        if not self._running:
             raise RobotStateError("swarm: start it with `async with swarm:` before run()")
-        runs = [asyncio.ensure_future(robot.run()) for robot in self]
+        runs: dict[Robot, asyncio.Future[object]] = {}
+        changed: asyncio.Future[object] = asyncio.get_running_loop().create_future()
         try:
-            done, _ = await asyncio.wait(runs, return_when=asyncio.FIRST_EXCEPTION)
-            for task in done:
-                error = task.exception()
-                if error is not None:
-                    self.stop()
-                    await asyncio.wait(runs)  # the others return once stopped
-                    raise error
+            while True:
+                for robot in self:
+                    if robot not in runs and robot.state is RobotState.RUNNING:
+                        runs[robot] = asyncio.ensure_future(robot.run())
+                members = [runs[robot] for robot in self if robot in runs]
+                for task in members:
+                    if task.done() and task.exception() is not None:
+                        await self._fail(runs)
+                if all(task.done() for task in members):
+                    return
+                self._changed.clear()
+                changed = asyncio.ensure_future(self._changed.wait())
+                waits: list[asyncio.Future[object]] = [t for t in members if not t.done()]
+                await asyncio.wait([*waits, changed], return_when=asyncio.FIRST_COMPLETED)
+                changed.cancel()
         finally:
-            for task in runs:
+            changed.cancel()
+            for task in runs.values():
                 task.cancel()
-            await asyncio.gather(*runs, return_exceptions=True)
+            await asyncio.gather(*runs.values(), return_exceptions=True)
+
+    async def _fail(self, runs: dict[Robot, asyncio.Future[object]]) -> None:
+        """Stops every robot after one failed, then raises the first failure."""
+        self.stop()
+        await asyncio.wait(list(runs.values()))  # the others return once stopped
+        for robot in self:
+            task = runs.get(robot)
+            error = None if task is None else task.exception()
+            if error is not None:
+                raise error
 
     def stop(self) -> None:
         """Asks every running robot to stop."""

@@ -577,7 +577,8 @@ def test_encode_of_an_undecorated_class_says_to_decorate_it() -> None:
     class CodecUndecorated(Message):
         pass
 
-    with pytest.raises(MessageDefinitionError, match="decorate it with @message"):
+    # Already when it is made, before any codec sees it.
+    with pytest.raises(MessageDefinitionError, match="decorate the class with @message"):
         CODEC.encode(CodecUndecorated())
 
 

@@ -280,7 +280,7 @@ def test_equality_includes_the_header() -> None:
 @pytest.mark.parametrize(
     ("msg", "expected"),
     [
-        pytest.param(MsgPing(1), "MsgPing(n=1, note='') [#0 ACCEPT robot 0 L0->L0]", id="default"),
+        pytest.param(MsgPing(1), "MsgPing(n=1, note='') [not sent, ACCEPT]", id="default"),
         pytest.param(
             MsgPing(2, "hi", msg_id=7, robot_id=3, src_layer=1, dst_layer=2),
             "MsgPing(n=2, note='hi') [#7 ACCEPT robot 3 L1->L2]",
@@ -293,19 +293,46 @@ def test_equality_includes_the_header() -> None:
         ),
         pytest.param(
             MsgRenamed(0.5, msg_type=MsgType.NEGOTIATION),
-            "MsgRenamed(value=0.5) [#0 NEGOTIATION robot 0 L0->L0]",
+            "MsgRenamed(value=0.5) [not sent, NEGOTIATION]",
             id="negotiation",
         ),
         pytest.param(
             MsgPing(1, msg_type=2),  # type: ignore[arg-type]
-            "MsgPing(n=1, note='') [#0 2 robot 0 L0->L0]",
+            "MsgPing(n=1, note='') [not sent, 2]",
             id="plain-int-msg-type",
         ),
-        pytest.param(MsgNotDecorated(), "MsgNotDecorated() [#0 ACCEPT robot 0 L0->L0]", id="unreg"),
     ],
 )
 def test_repr(msg: Message, expected: str) -> None:
     assert repr(msg) == expected
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        pytest.param(lambda: MsgNotDecorated(), id="no-arguments"),
+        pytest.param(lambda: MsgNotDecorated(n=1), id="a-field"),  # type: ignore[call-arg]
+        pytest.param(lambda: MsgNotDecorated(3), id="positional"),  # type: ignore[call-arg]
+    ],
+)
+def test_constructing_a_message_class_without_at_message_says_what_to_do(make) -> None:
+    with pytest.raises(
+        MessageDefinitionError,
+        match=r"MsgNotDecorated is a Message subclass "
+        r"without @message: decorate the class with @message",
+    ):
+        make()
+
+
+def test_a_subclass_of_a_message_needs_at_message_too() -> None:
+    class MsgPingSubclass(MsgPing):
+        pass
+
+    with pytest.raises(
+        MessageDefinitionError, match="MsgPingSubclass is a Message subclass without @message"
+    ):
+        MsgPingSubclass(1)
+    assert message(MsgPingSubclass)(1).n == 1  # decorated, it is a message (a new class)
 
 
 @pytest.mark.parametrize(
