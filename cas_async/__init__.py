@@ -20,10 +20,12 @@ from ._errors import (
     LayerError,
     MessageDefinitionError,
     RequestTimeout,
+    RobotGone,
     RobotStateError,
     RuleViolation,
     SimulationError,
     StackMismatchError,
+    UnexpectedReply,
     UnknownRobotError,
 )
 from ._layer import Layer
@@ -85,6 +87,7 @@ __all__ = [
     "RequestTimeout",
     "RestartPolicy",
     "Robot",
+    "RobotGone",
     "RobotId",
     "RobotState",
     "RobotStateError",
@@ -98,6 +101,7 @@ __all__ = [
     "Transport",
     "UdpDirectory",
     "UdpTransport",
+    "UnexpectedReply",
     "UnknownRobotError",
     "VirtualClock",
     "VirtualTimeLoop",

@@ -46,18 +46,18 @@ class Play(Layer):
             self.send(2, Ball(throw=1, speed=4.0))
 
     async def handle_msg(self, msg: Message) -> None:
-        assert isinstance(msg, Ball)
-        self.seen = msg.throw
-        caught = await self.request_layer(2, Catch(msg.speed))
-        assert isinstance(caught, Caught)
-        print(
-            f"t={self.clock.now():6.2f}s robot {self.robot_id} caught throw {msg.throw} "
-            f"in {caught.seconds:.2f}s"
-        )
-        if msg.throw < self.throws:
-            self.send(msg.robot_id, Ball(throw=msg.throw + 1, speed=msg.speed * 1.1))
-        else:
-            self.robot.stop()
+        match msg:
+            case Ball(throw=throw, speed=speed):
+                self.seen = throw
+                caught = await self.request_layer(2, Catch(speed), reply=Caught)
+                print(
+                    f"t={self.clock.now():6.2f}s robot {self.robot_id} caught throw {throw} "
+                    f"in {caught.seconds:.2f}s"
+                )
+                if throw < self.throws:
+                    self.send(msg.robot_id, Ball(throw=throw + 1, speed=speed * 1.1))
+                else:
+                    self.robot.stop()
 
     def termination_condition(self) -> bool:
         return self.seen >= self.throws - 1
@@ -71,10 +71,12 @@ class Motion(Layer):
     """The robotic layer: a catch takes 6 m / speed simulated seconds."""
 
     async def get_intra_msg_reply(self, msg: Message) -> Message | None:
-        assert isinstance(msg, Catch)
-        seconds = 6.0 / msg.speed
-        await self.clock.sleep(seconds)
-        return Caught(seconds)
+        match msg:
+            case Catch(speed=speed):
+                seconds = 6.0 / speed
+                await self.clock.sleep(seconds)
+                return Caught(seconds)
+        return None
 
 
 async def main(throws: int, time_factor: float) -> None:

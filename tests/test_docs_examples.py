@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -29,7 +32,37 @@ def test_readme_example_runs(tmp_path: Path) -> None:
     script.write_text(match.group(1))
     result = _run([str(script)])
     assert result.returncode == 0, result.stderr
-    assert "robot 2 got Ping(n=11, note='thanks')" in result.stdout
+    assert "robot 1 got Pong(10, 'thanks')" in result.stdout
+    assert "robot 2 got Pong(20, 'thanks')" in result.stdout
+
+
+def test_readme_example_type_checks_strictly(tmp_path: Path) -> None:
+    pytest.importorskip("mypy", reason="mypy comes with the dev extra (CI installs it)")
+    readme = (ROOT / "README.md").read_text()
+    match = re.search(r"## Two robots exchanging messages\n\n```python\n(.*?)```", readme, re.S)
+    assert match, "README lost its example"
+    script = tmp_path / "readme_example.py"
+    script.write_text(match.group(1))
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mypy",
+            "--strict",
+            "--cache-dir",
+            str(tmp_path / "cache"),
+            "--config-file",
+            str(ROOT / "pyproject.toml"),
+            str(script),
+        ],
+        cwd=tmp_path,
+        env={**os.environ, "MYPYPATH": str(ROOT)},  # an editable install hides it from mypy
+        capture_output=True,
+        text=True,
+        timeout=240,
+        check=False,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
 
 
 def test_two_robots_example_runs() -> None:

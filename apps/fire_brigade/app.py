@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Final
+from typing import Final
 
 from cas_async import Layer, Pose, Robot
 from cas_async.scenario import Mission, ScenarioError, SimulationSetup
@@ -39,13 +39,12 @@ class FireBrigade:
     item_name = "bucket"
     config_type = FireBrigadeConfig
 
-    def check(self, config: Any, world: tuple[float, float]) -> None:
+    def check(self, config: FireBrigadeConfig, world: tuple[float, float]) -> None:
         """Robots inside the world, a sensible spawn area and speeds, a known strategy.
 
         Raises:
             ScenarioError: naming each key at fault.
         """
-        assert isinstance(config, FireBrigadeConfig)
         problems: list[tuple[str, str]] = []
         where = f"inside the world (0..{world[0]:g}, 0..{world[1]:g})"
         stations = config.stations
@@ -102,10 +101,9 @@ class FireBrigade:
         if problems:
             raise ScenarioError(problems)
 
-    def build(self, setup: SimulationSetup) -> Mission:
+    def build(self, setup: SimulationSetup[FireBrigadeConfig]) -> Mission:
         """Generators, then Sinks, then Transporters (spawned at random), ids from 1."""
         config = setup.config
-        assert isinstance(config, FireBrigadeConfig)
         fleet, rng = config.transporters, setup.rng
         stations = config.stations
         placed: list[tuple[Kind, Pose]] = [

@@ -19,7 +19,6 @@ from .messages import Kind
 
 __all__ = [
     "ACTION",
-    "EARLY",
     "GOAL",
     "GROUP",
     "STRATEGY",
@@ -38,10 +37,6 @@ SinkSearch = Literal["everyone", "nearby"]
 
 GOAL, STRATEGY, GROUP, TASK, ACTION = range(5)
 """Levels of the five layers, top (0) to bottom (4)."""
-
-EARLY = 1e-6
-"""Simulated seconds by which a timer may fire ahead of its instant (clock rounding):
-a layer woken by ``wake_after`` compares the clock with its deadline minus this."""
 
 
 class Peers(Sequence[int]):

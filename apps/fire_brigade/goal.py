@@ -20,11 +20,11 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 
 from cas_async import Message, MsgType
 
-from .base import ACTION, EARLY, BrigadeLayer, Params, Point
+from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import distance
 from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
 
@@ -42,8 +42,7 @@ class Goal(BrigadeLayer):
         self.here: Point = (0.0, 0.0)
         self.delegated = False  # "MoveBucket" sent down and not yet completed
         self.asking = False  # a RequestInfo round is under way
-        self.rounds = 0  # RequestInfo rounds sent in this search
-        self.answers_due = 0.0  # when the current round is over
+        self.rounds = 0  # RequestInfo rounds sent in this search (timer "answers": over)
         self.answers: dict[int, RequestInfo] = {}
         self.sinks: dict[int, Point] | None = None  # known once a round completed
         # "nearby": the robots within radius (nearest first) and those of them that
@@ -52,10 +51,13 @@ class Goal(BrigadeLayer):
         self.waiting: set[int] = set()
         self.radius = params.range
 
+    async def on_timer(self, key: Hashable) -> None:
+        """The current RequestInfo round is over (``inner_process`` runs next)."""
+        if key == "answers" and self.asking:
+            await self._round_over()
+
     async def inner_process(self) -> None:
         """Starts what the state calls for: a destination search or a MoveBucket."""
-        if self.asking and self.clock.now() >= self.answers_due - EARLY:
-            await self._round_over()
         if self.kind is Kind.GENERATOR and self.bucket < 0 and not self.delegated:
             await self._make_bucket()
         if self.bucket < 0 or self.delegated:
@@ -79,8 +81,7 @@ class Goal(BrigadeLayer):
 
     async def _make_bucket(self) -> None:
         # Making a bucket is physical: the robotic layer does it.
-        made = await self.request_layer(ACTION, ChangeStatus("MakeBucket"))
-        assert isinstance(made, CompletionStatus)
+        made = await self.request_layer(ACTION, ChangeStatus("MakeBucket"), reply=CompletionStatus)
         self.bucket = made.bucket
         self.here = (made.x, made.y)
 
@@ -93,15 +94,15 @@ class Goal(BrigadeLayer):
             self.radius = self.params.range
             await self._ask_nearby()
             return
-        where = await self.request_layer(ACTION, RequestInfo())
-        assert isinstance(where, RequestInfo)
+        where = await self.request_layer(ACTION, RequestInfo(), reply=RequestInfo)
         self.here = (where.x, where.y)
         self._ask(self.params.peers)
 
     async def _ask_nearby(self) -> None:
         """Asks the robots within ``radius`` that have not answered yet."""
-        found = await self.request_layer(ACTION, RequestRobotsInRange(self.radius))
-        assert isinstance(found, RequestRobotsInRange)
+        found = await self.request_layer(
+            ACTION, RequestRobotsInRange(self.radius), reply=RequestRobotsInRange
+        )
         assert found.ids is not None
         self.here = (found.x, found.y)
         self.asked = tuple(found.ids)
@@ -135,8 +136,7 @@ class Goal(BrigadeLayer):
             robots=robots,
         )
         self.rounds += 1
-        self.answers_due = self.clock.now() + self.params.timeout
-        self.wake_after(self.params.timeout)
+        self.wake_after(self.params.timeout, "answers")
 
     async def _round_over(self) -> None:
         """Asks again who has not answered; after ``retries`` rounds, a Sink known is enough.
@@ -176,8 +176,7 @@ class Goal(BrigadeLayer):
             self.unexpected(msg, "the Goal layer only exchanges RequestInfo")
             return
         if msg.msg_type == MsgType.NEGOTIATION:
-            where = await self.request_layer(ACTION, RequestInfo())
-            assert isinstance(where, RequestInfo)
+            where = await self.request_layer(ACTION, RequestInfo(), reply=RequestInfo)
             self.reply(msg, RequestInfo(where.x, where.y, self.kind))
             return
         if not self.asking:

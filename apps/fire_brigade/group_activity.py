@@ -16,9 +16,11 @@ refused (DENY), so the giver gives up too.
 
 from __future__ import annotations
 
+from collections.abc import Hashable
+
 from cas_async import ConstantSpeed, Message, MsgType, RequestTimeout, SpeedProfile
 
-from .base import ACTION, EARLY, BrigadeLayer, Params, Point
+from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import meeting_point
 from .messages import ChangeStatus, Meet, RequestInfo
 
@@ -30,13 +32,12 @@ class GroupActivity(BrigadeLayer):
 
     def __init__(self, params: Params) -> None:
         super().__init__(params)
-        self.partnerships: dict[int, ChangeStatus] = {}  # partner -> the "Partnered" status
-        self.meet_due: dict[int, float] = {}  # receiver: partner -> when its Meet is overdue
+        # partner -> the "Partnered" status; a receiver arms the timer ("meet", partner)
+        # for when the partner's Meet is overdue.
+        self.partnerships: dict[int, ChangeStatus] = {}
 
     async def _where(self) -> RequestInfo:
-        where = await self.request_layer(ACTION, RequestInfo())
-        assert isinstance(where, RequestInfo)
-        return where
+        return await self.request_layer(ACTION, RequestInfo(), reply=RequestInfo)
 
     def _profile(self, speed: float, *, carrying: bool) -> SpeedProfile | None:
         """How a robot moving at ``speed`` now will move (``None``: it cannot)."""
@@ -44,12 +45,10 @@ class GroupActivity(BrigadeLayer):
             return None
         return self.params.carrying(speed) if carrying else ConstantSpeed(speed)
 
-    async def inner_process(self) -> None:
+    async def on_timer(self, key: Hashable) -> None:
         """A receiver whose giver never sent ``Meet`` gives the partnership up."""
-        now = self.clock.now()
-        for partner, due in list(self.meet_due.items()):
-            if now >= due - EARLY:
-                del self.meet_due[partner]
+        match key:
+            case ("meet", int(partner)):
                 partnership = self.partnerships.pop(partner, None)
                 if partnership is not None:
                     self.log.info("robot %d never sent Meet: partnership abandoned", partner)
@@ -75,9 +74,7 @@ class GroupActivity(BrigadeLayer):
             if msg.has_bucket:  # the giver opens the coordination
                 await self._open_meeting(msg)
             else:
-                wait = 2 * self.params.give_up_after
-                self.meet_due[msg.partner] = self.clock.now() + wait
-                self.wake_after(wait)
+                self.wake_after(2 * self.params.give_up_after, ("meet", msg.partner))
         elif msg.status == "Carry":
             self.send_down(msg)
         elif msg.status in ("Exchanged", "Abandoned"):
@@ -92,9 +89,10 @@ class GroupActivity(BrigadeLayer):
         where = await self._where()
         ask = Meet(where.x, where.y, self.kind, where.speed, deal=partnership.deal)
         try:
-            answer = await self.request(
+            answer: Meet | None = await self.request(
                 partnership.partner,
                 ask,
+                reply=Meet,
                 timeout=self.params.timeout,
                 retries=self.params.retries,
             )
@@ -102,7 +100,7 @@ class GroupActivity(BrigadeLayer):
             answer = None
         if self.partnerships.get(partnership.partner) is not partnership:
             return  # cannot happen: a giver has one partnership at a time
-        if not isinstance(answer, Meet) or answer.msg_type != MsgType.ACCEPT:
+        if answer is None or answer.msg_type != MsgType.ACCEPT:
             self.log.info("robot %d did not agree to meet", partnership.partner)
             del self.partnerships[partnership.partner]
             self._abandoned(partnership)
@@ -121,7 +119,7 @@ class GroupActivity(BrigadeLayer):
             self.reply(msg, Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY))
             self.late(msg, "not (or no longer) this robot's partner")
             return
-        self.meet_due.pop(msg.robot_id, None)
+        self.cancel_wake(("meet", msg.robot_id))
         where = await self._where()
         point = meeting_point(
             (msg.x, msg.y),

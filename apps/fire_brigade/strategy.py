@@ -23,11 +23,12 @@ after ``retries`` more attempts the robot asked counts as silent, like a refusal
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable
 from dataclasses import dataclass
 
 from cas_async import Message, MsgType, SpeedProfile
 
-from .base import ACTION, EARLY, BrigadeLayer, Params, Point
+from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import distance
 from .messages import ChangeStatus, Kind, RequestPartner, RequestRobotsInRange
 
@@ -99,13 +100,11 @@ class Strategy(BrigadeLayer):
         self.asked = -1  # the robot whose answer is awaited
         self.asked_in = -1  # the msg_id of that request: its answer's corr_id
         self.question: RequestPartner | None = None  # that request, to send it again
-        self.tries = 0  # times it was sent
-        self.answer_due = 0.0  # when it is sent again (or the robot counts as silent)
+        self.tries = 0  # times it was sent (timer "answer": send again, or give it up)
         self.partners: set[int] = set()  # a Sink may have several at once
         self.stations: set[int] = set()  # robots that answered as Generator or Sink
         self.came_from = -1  # who handed this robot its bucket
-        self.radius = params.range
-        self.retry_at: float | None = None  # when a failed round is tried again
+        self.radius = params.range  # timer "retry": a failed round is tried again
 
     def choose(self, view: SearchView) -> list[int]:
         """The robots to ask, best first (an empty list: carry it, or retry)."""
@@ -113,14 +112,11 @@ class Strategy(BrigadeLayer):
 
     # -- having a bucket ------------------------------------------------------------------
 
-    async def inner_process(self) -> None:
-        """A round that found nobody and nowhere to go is retried after ``retry_interval``."""
-        # Also runs after every batch of messages: only act once something is due.
-        now = self.clock.now()
-        if self.retry_at is not None and now >= self.retry_at - EARLY:
-            self.retry_at = None
+    async def on_timer(self, key: Hashable) -> None:
+        """A failed round is retried (``"retry"``); an answer is overdue (``"answer"``)."""
+        if key == "retry":
             await self._search()
-        if self.asked >= 0 and now >= self.answer_due - EARLY:
+        elif key == "answer" and self.asked >= 0:
             self._no_answer()
 
     def _no_answer(self) -> None:
@@ -137,20 +133,17 @@ class Strategy(BrigadeLayer):
 
     def _await_answer(self) -> None:
         self.tries += 1
-        self.answer_due = self.clock.now() + self.params.timeout
-        self.wake_after(self.params.timeout)
+        self.wake_after(self.params.timeout, "answer")
 
     async def on_restart(self, error: Exception) -> None:
         """After a failure (with ``[run] restarts``): drop the round under way, search anew."""
         self.asked = -1
-        if self.bucket >= 0 and not self.partners:  # from inner_process, not from here
-            self.retry_at = self.clock.now()
-            self.wake_after(0.0)
+        if self.bucket >= 0 and not self.partners:  # from the timer, not from here
+            self.wake_after(0.0, "retry")
 
     def _retry_later(self) -> None:
         # A timer, not a sleep: requests keep being answered meanwhile.
-        self.retry_at = self.clock.now() + self.params.retry_interval
-        self.wake_after(self.params.retry_interval)
+        self.wake_after(self.params.retry_interval, "retry")
 
     async def store_intra_msg(self, msg: Message) -> None:
         """From the Goal layer: a bucket to move; from below: a hand-over or a leg done."""
@@ -179,8 +172,9 @@ class Strategy(BrigadeLayer):
 
     async def _search(self) -> None:
         self.searching = True
-        found = await self.request_layer(ACTION, RequestRobotsInRange(self.radius))
-        assert isinstance(found, RequestRobotsInRange)
+        found = await self.request_layer(
+            ACTION, RequestRobotsInRange(self.radius), reply=RequestRobotsInRange
+        )
         assert found.ids is not None
         assert found.xs is not None
         assert found.ys is not None

@@ -22,11 +22,12 @@ happen any more. Either way both robots agree with what physically happened.
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable
 from dataclasses import dataclass
 
 from cas_async import Message, MsgType, RequestTimeout
 
-from .base import EARLY, BrigadeLayer, Params
+from .base import BrigadeLayer, Params
 from .messages import ChangeStatus, CompletionStatus, Handover, Meeting
 
 __all__ = ["Task"]
@@ -44,7 +45,6 @@ class _Meeting:
     arrived: bool = False
     partner_arrived: bool = False
     handed_over: bool = False  # the receiver got the giver's Handover
-    call_due: float = math.inf  # when to say "I am here" again
 
 
 class Task(BrigadeLayer):
@@ -56,8 +56,7 @@ class Task(BrigadeLayer):
         self.x = self.y = self.heading = 0.0
 
     async def _act(self, command: ChangeStatus) -> CompletionStatus:
-        done = await self.request_down(command)
-        assert isinstance(done, CompletionStatus)
+        done = await self.request_down(command, reply=CompletionStatus)
         self.x, self.y, self.heading = done.x, done.y, done.heading
         return done
 
@@ -72,16 +71,33 @@ class Task(BrigadeLayer):
             else:
                 await self._act(ChangeStatus("Move", x=x, y=y))
 
-    async def inner_process(self) -> None:
-        """At a meeting point: call the partner again, or give a silent partner up."""
-        now = self.clock.now()
-        for partner, meeting in list(self.meetings.items()):
-            if not meeting.arrived:
-                continue
-            if now >= meeting.heard + self.params.patience - EARLY:
-                await self._give_up(partner, meeting)
-            elif now >= meeting.call_due - EARLY:
-                self._call(partner, meeting)
+    async def on_timer(self, key: Hashable) -> None:
+        """At a meeting point: call the partner again, or give a silent partner up.
+
+        Per meeting, ``("call", partner, deal)`` goes off every ``timeout`` and
+        ``("patience", partner, deal)`` ``patience`` seconds after the partner was
+        last heard of; the deal in the key keeps a timer of an earlier meeting with
+        the same partner from acting on a later one.
+        """
+        match key:
+            case (what, int(partner), int(deal)):
+                meeting = self.meetings.get(partner)
+                if meeting is None or meeting.plan.deal != deal or not meeting.arrived:
+                    return
+                if what == "patience":
+                    await self._give_up(partner, meeting)
+                elif what == "call":
+                    self._call(partner, meeting)
+
+    def _heard(self, partner: int, meeting: _Meeting, at: float) -> None:
+        """The partner was heard of (or this robot arrived) at ``at``: patience starts again.
+
+        Patience only runs at the meeting point: before arriving, it is noted only.
+        """
+        meeting.heard = max(meeting.heard, at)
+        if meeting.arrived:
+            deal = meeting.plan.deal
+            self.wake_at(meeting.heard + self.params.patience, ("patience", partner, deal))
 
     def _call(self, partner: int, meeting: _Meeting) -> None:
         """Says "I am here" until the partner is known there (the receiver: and handed over)."""
@@ -90,8 +106,7 @@ class Task(BrigadeLayer):
         )
         if waiting:
             self.send(partner, Meeting(meeting.plan.deal, msg_type=MsgType.NEGOTIATION))
-        meeting.call_due = self.clock.now() + self.params.timeout
-        self.wake_after(self.params.timeout)
+        self.wake_after(self.params.timeout, ("call", partner, meeting.plan.deal))
 
     async def store_intra_msg(self, msg: Message) -> None:
         """A meeting or a solo leg from above."""
@@ -104,7 +119,7 @@ class Task(BrigadeLayer):
             if self.params.mobile:
                 await self._go_to(msg.x, msg.y)
             meeting.arrived = True
-            meeting.heard = max(meeting.heard, self.clock.now())
+            self._heard(msg.partner, meeting, self.clock.now())
             self._call(msg.partner, meeting)
             await self._progress(msg.partner)
         elif msg.status == "Carry":
@@ -129,7 +144,7 @@ class Task(BrigadeLayer):
             # after this robot gave up, even during a new partnership of the two.
             self.late(msg, f"no meeting with robot {msg.robot_id} for this deal")
             return
-        meeting.heard = self.clock.now()
+        self._heard(msg.robot_id, meeting, self.clock.now())
         if isinstance(msg, Meeting):
             meeting.partner_arrived = True
             if msg.msg_type == MsgType.NEGOTIATION and meeting.arrived:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Generic, Protocol, TypeVar
 
 import numpy as np
 
@@ -27,9 +27,12 @@ from ..transport._base import Transport
 
 __all__ = ["Mission", "SimulationApp", "SimulationSetup"]
 
+C = TypeVar("C")
+"""An application's configuration type (its ``config_type``)."""
+
 
 @dataclass(frozen=True, slots=True)
-class SimulationSetup:
+class SimulationSetup(Generic[C]):
     """What the runner hands an application to build its robots with.
 
     Attributes:
@@ -44,7 +47,7 @@ class SimulationSetup:
             ``[run] restarts``; ``None``: a layer that raises fails the run.
     """
 
-    config: Any
+    config: C
     world: tuple[float, float]
     environment: Environment
     clock: Clock
@@ -71,7 +74,7 @@ class Mission:
     extra: Callable[[], dict[str, float | int | str]] | None = None
 
 
-class SimulationApp(Protocol):
+class SimulationApp(Protocol[C]):
     """An application the scenario runner can run (see the module docs).
 
     Attributes:
@@ -83,14 +86,14 @@ class SimulationApp(Protocol):
 
     name: str
     item_name: str
-    config_type: type[Any]
+    config_type: type[C]
 
-    def check(self, config: Any, world: tuple[float, float]) -> None:
+    def check(self, config: C, world: tuple[float, float]) -> None:
         """Checks what needs several keys at once (robots inside the world, …).
 
         Raises:
             ScenarioError: naming the key at fault.
         """
 
-    def build(self, setup: SimulationSetup) -> Mission:
+    def build(self, setup: SimulationSetup[C]) -> Mission:
         """Creates the robots, adds them to ``setup.environment``, returns the mission."""

@@ -187,7 +187,7 @@ class Scenario:
 
     path: Path
     app_path: str
-    app: SimulationApp
+    app: SimulationApp[Any]
     run: RunConfig
     world: WorldConfig
     config: Any
@@ -408,7 +408,7 @@ def _importable_from(path: Path, module_name: str) -> None:
 
 def _import_app(
     spec: object, problems: list[tuple[str, str]], path: Path
-) -> tuple[str, SimulationApp | None]:
+) -> tuple[str, SimulationApp[Any] | None]:
     """The application ``spec`` names, or ``None`` with the reason added to ``problems``."""
     if spec is None:
         problems.append(("app", f"missing required key (expected {_APP_EXPECTED})"))
@@ -446,4 +446,4 @@ def _import_app(
             ("app", f"{show(spec)}: config_type may not have keys {', '.join(clashes)}")
         )
         return spec, None
-    return spec, cast(SimulationApp, app)
+    return spec, cast(SimulationApp[Any], app)

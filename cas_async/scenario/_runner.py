@@ -15,7 +15,7 @@ import contextlib
 import time
 import traceback
 from collections.abc import Callable
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -103,7 +103,7 @@ async def run_scenario(
     environment = Environment()
     clock = _clock(scenario)
     transport = _transport(scenario, clock, key)
-    setup = SimulationSetup(
+    setup: SimulationSetup[Any] = SimulationSetup(
         scenario.config,
         world,
         environment,
