@@ -377,6 +377,7 @@ class LayerRuntime:
         while True:
             attempt += 1
             if not self.outbox.knows(robot_id):
+                self.outbox.require_transport()
                 raise RobotGone(
                     f"{self.log.prefix}robot {robot_id} is not reachable (asked "
                     f"{type(msg).__name__} #{msg_id}, attempt {attempt})",

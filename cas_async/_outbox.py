@@ -146,6 +146,11 @@ class Outbox:
         """Whether a message to ``robot_id`` (or a reply to it) can be sent."""
         return self._endpoint.knows(robot_id)
 
+    def require_transport(self) -> None:
+        """Raises ``ConfigurationError`` when the robot has no transport (saying so)."""
+        if isinstance(self._endpoint, Unconnected):
+            self._endpoint.send(self.robot_id, b"")  # raises, naming what is missing
+
     # -- stamping ----------------------------------------------------------------------
 
     def stamp(self, msg: Message, src: Level, dst: Level, corr_id: int = 0) -> None:

@@ -168,6 +168,9 @@ async def test_send_without_transport_says_so(start_robot) -> None:
     await start_robot(1, stack)
     with pytest.raises(ConfigurationError, match="robot 1 has no transport"):
         stack[0].send(2, Note("x", []))
+    with pytest.raises(ConfigurationError, match="robot 1 has no transport"):
+        await stack[0].request(2, Note("x", []))
+    assert not stack[0].knows(2)
 
 
 async def test_cancelling_the_embedding_task_still_shuts_down() -> None:
