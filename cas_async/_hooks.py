@@ -4,7 +4,8 @@
 * :class:`RobotHandle`: what a layer sees of its robot (``self.robot``): its id,
   clock and state, and how to stop it; a layer knows nothing else of the robot
   (thesis rule 8: layers are developed in isolation);
-* :class:`Detached`: the stand-in runtime of a layer not yet given to a robot.
+* :class:`Detached`: the stand-in runtime of a layer not yet given to a robot;
+* :class:`Overrides`: which optional hooks a layer's class overrides.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from ._message import Message
 from ._robot_state import RobotState
 from ._types import RobotId
 
-__all__ = ["Detached", "Hooks", "RobotHandle"]
+__all__ = ["Detached", "Hooks", "Overrides", "RobotHandle"]
 
 
 class Hooks(Protocol):
@@ -97,3 +98,15 @@ class Detached:
         raise RobotStateError(
             f"{self._owner} is not part of a robot yet: give it to a Robot(...) first"
         )
+
+
+@final
+class Overrides:
+    """Which optional hooks a layer's class overrides (the others are never called)."""
+
+    __slots__ = ("answers", "inner", "membership")
+
+    def __init__(self, *, inner: bool, answers: bool, membership: bool) -> None:
+        self.inner = inner  # inner_process: runs after each batch
+        self.answers = answers  # get_msg_reply: answers requests on arrival
+        self.membership = membership  # on_robot_joined / on_robot_left

@@ -1,12 +1,8 @@
 """One layer's runtime: its inbox, counters, requests, timers and links, and its loop.
 
-A :class:`~cas_async.Layer` subclass is the user's: it holds the hooks and
-whatever attributes its author chooses. Everything the runtime needs to run it
-lives here, in one :class:`LayerRuntime` per layer, created and held by the
-robot; the layer reaches it through a single attribute (``_cas``) and sees only
-the messaging API that delegates to it.
-
-What the runtime does for its layer:
+A :class:`~cas_async.Layer` subclass is the user's: hooks, and attributes of its
+author's choosing. Everything the runtime needs lives in one :class:`LayerRuntime`
+per layer, held by the robot and reached through the layer's one attribute ``_cas``:
 
 * **internal messages** (thesis ``SendUp``/``SendDown``/``ReceiveIntraMsg``):
   stamped, counted and carried through every intermediate layer *when sent*:
@@ -26,9 +22,8 @@ What the runtime does for its layer:
   ``store_intra_msg``), robots that joined or left (``on_robot_joined``,
   ``on_robot_left``), timers that went off (``on_timer``), and ``inner_process()``
   again; until the robot cancels the task;
-* **back-pressure**: a send that fills another layer's inbox (see
-  :mod:`cas_async._channel`) marks this layer congested; after the hook that
-  sent it, this layer waits until that inbox has drained to half its limit;
+* **back-pressure** (:mod:`cas_async._backpressure`): after a hook whose sends
+  filled another layer's inbox, this layer waits until that inbox has drained;
 * **timers** (:mod:`cas_async._timers`), disarmed when the robot stops.
 """
 
@@ -40,6 +35,7 @@ from collections import deque
 from collections.abc import Callable, Hashable, Iterable, Sequence
 from typing import Final, TypeVar, final
 
+from ._backpressure import Flow
 from ._channel import Channel
 from ._counters import LayerCounters
 from ._errors import (
@@ -47,35 +43,22 @@ from ._errors import (
     RobotGone,
     RobotStateError,
     RuleViolation,
-    UnexpectedReply,
 )
-from ._hooks import Hooks, RobotHandle
+from ._hooks import Hooks, Overrides, RobotHandle
 from ._logs import DropLog, PrefixLogger
 from ._message import Message, MsgType
 from ._outbox import Outbox, owned
-from ._requests import PendingRequests, ReplyOutcome
+from ._requests import PendingRequests, ReplyOutcome, check_reply
 from ._timers import Timers
 from ._types import Level, RobotId
 
-__all__ = ["LayerRuntime", "Overrides"]
+__all__ = ["LayerRuntime"]
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
 _NOT_A_REPLY: Final = ReplyOutcome.NOT_A_REPLY
 _DELIVERED: Final = ReplyOutcome.DELIVERED
 
 R = TypeVar("R", bound=Message)
-
-
-@final
-class Overrides:
-    """Which optional hooks a layer's class overrides (the others are never called)."""
-
-    __slots__ = ("answers", "inner", "membership")
-
-    def __init__(self, *, inner: bool, answers: bool, membership: bool) -> None:
-        self.inner = inner  # inner_process: runs after each batch
-        self.answers = answers  # get_msg_reply: answers requests on arrival
-        self.membership = membership  # on_robot_joined / on_robot_left
 
 
 @final
@@ -99,11 +82,11 @@ class LayerRuntime:
         "above",
         "below",
         "clock",
-        "congested",
         "counters",
         "drops",
         "events",
         "failure",
+        "flow",
         "inbox",
         "layer",
         "level",
@@ -117,7 +100,6 @@ class LayerRuntime:
         "robot",
         "stack",
         "timers",
-        "waiting_on",
     )
 
     def __init__(
@@ -154,10 +136,7 @@ class LayerRuntime:
         self.above: LayerRuntime | None = None
         self.below: LayerRuntime | None = None
         self.stack: Sequence[LayerRuntime] = (self,)
-        # Back-pressure: the layer whose inbox this one filled, and the layer this
-        # one waits on (for room, or for an answer), to see a cycle of waiting layers.
-        self.congested: LayerRuntime | None = None
-        self.waiting_on: LayerRuntime | None = None
+        self.flow = Flow(self.inbox)  # back-pressure: whose inbox it filled, whom it waits on
 
     def link(self, stack: Sequence[LayerRuntime]) -> None:
         """Thesis ConnectLayers: this layer's neighbours in ``stack`` (top first)."""
@@ -261,7 +240,7 @@ class LayerRuntime:
                     target.counters.received_internal += 1
                 return
         if target.inbox.put(msg):
-            self.congested = target
+            self.flow.filled(target.flow)
 
     def reply_internal(self, request: Message, response: Message) -> None:
         """Answers an internal request: the response goes back to the asking layer."""
@@ -387,7 +366,7 @@ class LayerRuntime:
             waiting = self.expect(msg, robot_id, True, timeout)
             try:
                 self.outbox.transmit(self.counters, robot_id, data, msg.__class__)
-                return self.checked(await waiting, reply, msg)
+                return check_reply(await waiting, reply, msg, self.log.prefix)
             except RobotGone as exc:
                 exc.peer, exc.attempts = robot_id, attempt
                 raise
@@ -428,14 +407,11 @@ class LayerRuntime:
         by_type = counters.internal_by_type
         by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
         self.carry(msg)
-        # While it waits for the answer this layer handles nothing: a layer that waits
-        # for room in this layer's inbox must not wait for it (see wait_for_room).
-        self.waiting_on = self.stack[level]
-        self.inbox.release_room_waiters()
+        self.flow.asking(self.stack[level].flow)  # it handles nothing while it waits
         try:
-            return self.checked(await waiting, reply, msg)
+            return check_reply(await waiting, reply, msg, self.log.prefix)
         finally:
-            self.waiting_on = None
+            self.flow.asking(None)
             self.requests.forget(msg.msg_id)
 
     def expect(
@@ -445,21 +421,6 @@ class LayerRuntime:
         seconds = self.layer.default_request_timeout if timeout is None else timeout
         deadline = self.clock.loop_deadline(seconds)
         return self.requests.expect(msg, peer, external, seconds, deadline)
-
-    def checked(self, answer: Message, expected: type[Message] | None, asked: Message) -> Message:
-        """``answer``, if it is of the class the request asked for.
-
-        Raises:
-            UnexpectedReply: naming both classes.
-        """
-        if expected is None or isinstance(answer, expected):
-            return answer
-        raise UnexpectedReply(
-            f"{self.log.prefix}asked {type(asked).__name__} #{asked.msg_id} for a "
-            f"{expected.__name__} reply, got a {type(answer).__name__}: {answer!r}",
-            answer,
-            expected,
-        )
 
     # -- timers --------------------------------------------------------------------------
 
@@ -484,9 +445,10 @@ class LayerRuntime:
         calls_inner = self.overrides.inner
         on_batch = self.on_batch
         timers = self.timers
+        flow = self.flow
         await layer.inner_process()
-        if self.congested is not None:
-            await self.wait_for_room()
+        if flow.congested:
+            await flow.wait_for_room()
         if on_batch is not None:
             on_batch(self)
         while True:
@@ -509,19 +471,19 @@ class LayerRuntime:
                             self.reply_internal(msg, response)
                     else:
                         await layer.store_intra_msg(msg)
-                if self.congested is not None:
-                    await self.wait_for_room()
+                if flow.congested:
+                    await flow.wait_for_room()
                 msg = pop()
             await self.tell_events()
             if timers:
                 for key in timers.take_fired():
                     await layer.on_timer(key)
-                    if self.congested is not None:
-                        await self.wait_for_room()
+                    if flow.congested:
+                        await flow.wait_for_room()
             if calls_inner:
                 await layer.inner_process()
-                if self.congested is not None:
-                    await self.wait_for_room()
+                if flow.congested:
+                    await flow.wait_for_room()
             if on_batch is not None:
                 on_batch(self)
 
@@ -534,35 +496,3 @@ class LayerRuntime:
                 await self.layer.on_robot_joined(robot_id)
             else:
                 await self.layer.on_robot_left(robot_id)
-
-    async def wait_for_room(self) -> None:
-        """Waits while a layer that this one filled drains to half its limit.
-
-        A layer never waits on one that waits, along a chain, on it: two layers
-        flooding each other, or a consumer asking its producer, would wait forever.
-        One of them goes on instead, which drains the other's sender. A layer that
-        starts waiting on one held back by it releases it (``release_room_waiters``),
-        so the check is made again.
-        """
-        target = self.congested
-        self.congested = None
-        assert target is not None
-        while target.inbox.crowded and not target.waits_on(self):
-            self.waiting_on = target
-            try:
-                await target.inbox.room()
-            finally:
-                self.waiting_on = None
-
-    def waits_on(self, other: LayerRuntime) -> bool:
-        """Whether this layer waits, directly or along a chain, on ``other``.
-
-        A layer waits on another while it waits for room in its inbox, or for its
-        answer to a request (then it handles nothing either).
-        """
-        along: LayerRuntime | None = self
-        while along is not None:
-            if along is other:
-                return True
-            along = along.waiting_on
-        return False

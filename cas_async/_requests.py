@@ -18,11 +18,11 @@ from collections.abc import Callable
 from typing import Final
 
 from ._deadlines import Deadlines
-from ._errors import RequestTimeout, RobotStateError
+from ._errors import RequestTimeout, RobotStateError, UnexpectedReply
 from ._message import Message
 from ._types import RobotId
 
-__all__ = ["PendingRequests", "ReplyOutcome"]
+__all__ = ["PendingRequests", "ReplyOutcome", "check_reply"]
 
 _MEMORY: Final = 256
 """Timed-out and answered request ids remembered per layer, to drop late or repeated replies.
@@ -182,3 +182,21 @@ class PendingRequests:
                     )
                 )
         self._waiting.clear()
+
+
+def check_reply(
+    answer: Message, expected: type[Message] | None, asked: Message, owner: str
+) -> Message:
+    """``answer``, if it is of the class the request ``asked`` asked for (``None``: any).
+
+    Raises:
+        UnexpectedReply: naming both classes (``owner`` names the asking layer).
+    """
+    if expected is None or isinstance(answer, expected):
+        return answer
+    raise UnexpectedReply(
+        f"{owner}asked {type(asked).__name__} #{asked.msg_id} for a "
+        f"{expected.__name__} reply, got a {type(answer).__name__}: {answer!r}",
+        answer,
+        expected,
+    )

@@ -32,8 +32,9 @@ from ._codec import DEFAULT_MAX_DATAGRAM, MIN_DATAGRAM, Codec
 from ._counters import LayerCounters
 from ._errors import ConfigurationError, RobotStateError
 from ._fingerprint import stack_fingerprint
+from ._hooks import Overrides
 from ._layer import Layer, attach, overrides
-from ._layer_runtime import LayerRuntime, Overrides
+from ._layer_runtime import LayerRuntime
 from ._logs import DropLog, logger_for
 from ._message import Message, specs_for
 from ._outbox import Outbox
