@@ -29,26 +29,25 @@ class Flow:
         inbox: the layer's inbox (others wait for room in it).
     """
 
-    __slots__ = ("_congested", "_inbox", "_waiting_on")
+    __slots__ = ("_inbox", "_waiting_on", "congested")
 
     def __init__(self, inbox: Channel[Any]) -> None:
         self._inbox = inbox
-        self._congested: Flow | None = None  # the layer whose inbox this one filled
         self._waiting_on: Flow | None = None  # the layer this one waits on
+        self.congested: Flow | None = None
+        """The layer whose inbox this one filled since it last waited for room.
 
-    @property
-    def congested(self) -> bool:
-        """Whether this layer filled an inbox since it last waited for room."""
-        return self._congested is not None
+        Read after every hook (``is not None``: a plain attribute, no call); set
+        through :meth:`filled`."""
 
     def filled(self, other: Flow) -> None:
         """This layer's send filled ``other``'s inbox: it waits after its hook."""
-        self._congested = other
+        self.congested = other
 
     async def wait_for_room(self) -> None:
         """Waits while the layer this one filled drains to half its limit (see the module docs)."""
-        target = self._congested
-        self._congested = None
+        target = self.congested
+        self.congested = None
         if target is None:
             return
         while target._inbox.crowded and not target.waits_on(self):

@@ -172,13 +172,15 @@ class LayerRuntime:
 
     def send_up(self, msg: Message) -> None:
         """Sends an internal message to the layer directly above."""
-        if self.neighbour_ok(self.level - 1, msg):
-            self.send_internal(self.level - 1, owned(msg))
+        level = self.level - 1
+        if (self.live and level >= 0) or self.neighbour_ok(level, msg):
+            self.send_internal(level, msg if msg.msg_id == 0 else owned(msg))
 
     def send_down(self, msg: Message) -> None:
         """Sends an internal message to the layer directly below."""
-        if self.neighbour_ok(self.level + 1, msg):
-            self.send_internal(self.level + 1, owned(msg))
+        level = self.level + 1
+        if (self.live and level < len(self.stack)) or self.neighbour_ok(level, msg):
+            self.send_internal(level, msg if msg.msg_id == 0 else owned(msg))
 
     def send_to_layer(self, level: Level, msg: Message) -> None:
         """Sends an internal message to any other layer of this robot."""
@@ -355,18 +357,17 @@ class LayerRuntime:
         attempt = 0
         while True:
             attempt += 1
-            if not self.outbox.knows(robot_id):
-                self.outbox.require_transport()
-                raise RobotGone(
-                    f"{self.log.prefix}robot {robot_id} is not reachable (asked "
-                    f"{type(msg).__name__} #{msg_id}, attempt {attempt})",
-                    robot_id,
-                    attempt,
-                )
             waiting = self.expect(msg, robot_id, True, timeout)
             try:
-                self.outbox.transmit(self.counters, robot_id, data, msg.__class__)
-                return check_reply(await waiting, reply, msg, self.log.prefix)
+                if not self.outbox.transmit(self.counters, robot_id, data, msg.__class__):
+                    raise RobotGone(
+                        f"{self.log.prefix}robot {robot_id} is not reachable (asked "
+                        f"{type(msg).__name__} #{msg_id}, attempt {attempt})"
+                    )
+                answer = await waiting
+                if reply is None or isinstance(answer, reply):  # check_reply's common case
+                    return answer
+                return check_reply(answer, reply, msg, self.log.prefix)
             except RobotGone as exc:
                 exc.peer, exc.attempts = robot_id, attempt
                 raise
@@ -409,7 +410,10 @@ class LayerRuntime:
         self.carry(msg)
         self.flow.asking(self.stack[level].flow)  # it handles nothing while it waits
         try:
-            return check_reply(await waiting, reply, msg, self.log.prefix)
+            answer = await waiting
+            if reply is None or isinstance(answer, reply):  # check_reply's common case
+                return answer
+            return check_reply(answer, reply, msg, self.log.prefix)
         finally:
             self.flow.asking(None)
             self.requests.forget(msg.msg_id)
@@ -447,7 +451,7 @@ class LayerRuntime:
         timers = self.timers
         flow = self.flow
         await layer.inner_process()
-        if flow.congested:
+        if flow.congested is not None:
             await flow.wait_for_room()
         if on_batch is not None:
             on_batch(self)
@@ -471,18 +475,19 @@ class LayerRuntime:
                             self.reply_internal(msg, response)
                     else:
                         await layer.store_intra_msg(msg)
-                if flow.congested:
+                if flow.congested is not None:
                     await flow.wait_for_room()
                 msg = pop()
-            await self.tell_events()
-            if timers:
+            if self.events:
+                await self.tell_events()
+            if timers.fired:
                 for key in timers.take_fired():
                     await layer.on_timer(key)
-                    if flow.congested:
+                    if flow.congested is not None:
                         await flow.wait_for_room()
             if calls_inner:
                 await layer.inner_process()
-                if flow.congested:
+                if flow.congested is not None:
                     await flow.wait_for_room()
             if on_batch is not None:
                 on_batch(self)

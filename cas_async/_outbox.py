@@ -146,10 +146,6 @@ class Outbox:
         """Whether a message to ``robot_id`` (or a reply to it) can be sent."""
         return self._endpoint.knows(robot_id)
 
-    def require_transport(self) -> None:
-        """Raises ``ConfigurationError`` when the robot has no transport (saying so)."""
-        if isinstance(self._endpoint, Unconnected):
-            self._endpoint.send(self.robot_id, b"")  # raises, naming what is missing
 
     # -- stamping ----------------------------------------------------------------------
 
@@ -286,19 +282,20 @@ class Outbox:
         kind: type[Message],
         *,
         unknown: str = "unknown_robot",
-    ) -> None:
-        """Sends an encoded message of class ``kind`` and counts it.
+    ) -> bool:
+        """Sends an encoded message of class ``kind`` and counts it; whether it went.
 
         Every external message but a plain ``send`` (which inlines the same steps)
         leaves the robot here: each attempt of a request, a reply, a resend, each
         copy of a broadcast. A robot the transport does not know is a drop counted
-        under ``unknown``, never an error.
+        under ``unknown`` (``False``), never an error.
         """
         try:
             self._endpoint.send(robot_id, data)
         except UnknownRobotError as exc:
             self._drops.drop(unknown, f"{kind.__name__}: {exc}")
-            return
+            return False
         counters.sent_external += 1
         by_type = counters.external_by_type
         by_type[kind] = by_type.get(kind, 0) + 1
+        return True

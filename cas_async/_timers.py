@@ -33,13 +33,14 @@ class Timers:
         ring: called when a timer has gone off, to wake the layer's task.
     """
 
-    __slots__ = ("_armed", "_clock", "_fired", "_ring")
+    __slots__ = ("_armed", "_clock", "_ring", "fired")
 
     def __init__(self, clock: Clock, ring: Callable[[], None]) -> None:
         self._clock = clock
         self._ring = ring
         self._armed: dict[Hashable, tuple[float, asyncio.TimerHandle]] = {}
-        self._fired: dict[Hashable, None] = {}  # gone off, not yet told; in firing order
+        self.fired: dict[Hashable, None] = {}
+        """Timers gone off and not told yet, in firing order (the layer's loop checks it)."""
 
     def arm(self, key: Hashable, at: float) -> None:
         """Sets timer ``key`` to go off at simulated instant ``at`` (replacing its earlier one).
@@ -68,7 +69,7 @@ class Timers:
             self._armed[key] = (at, loop.call_at(when, self._go_off, key))
             return
         del self._armed[key]
-        self._fired[key] = None
+        self.fired[key] = None
         self._ring()
 
     def cancel(self, key: Hashable) -> bool:
@@ -77,32 +78,32 @@ class Timers:
         if entry is not None:
             entry[1].cancel()
             return True
-        return self._fired.pop(key, 0) is None  # the value of a fired key is None
+        return self.fired.pop(key, 0) is None  # the value of a fired key is None
 
     def due(self, key: Hashable) -> float | None:
         """The simulated instant timer ``key`` goes off, ``None`` when it is not set."""
         entry = self._armed.get(key)
         if entry is not None:
             return entry[0]
-        return self._clock.now() if key in self._fired else None
+        return self._clock.now() if key in self.fired else None
 
     def take_fired(self) -> Iterator[Hashable]:
         """The keys of the timers that went off since the last call, in the order they did.
 
         A key armed again or cancelled while the ones before it are told is skipped.
         """
-        fired = self._fired
+        fired = self.fired
         while fired:
             key = next(iter(fired))
             del fired[key]
             yield key
 
     def __len__(self) -> int:
-        return len(self._armed) + len(self._fired)
+        return len(self._armed) + len(self.fired)
 
     def close(self) -> None:
         """Disarms every timer (the robot stopped)."""
         for _, handle in self._armed.values():
             handle.cancel()
         self._armed.clear()
-        self._fired.clear()
+        self.fired.clear()

@@ -410,7 +410,7 @@ def test_a_robot_that_leaves_costs_the_others_nothing_but_counts(kind: str) -> N
     assert knew
     assert knows
     assert outcomes == [("RobotGone", 2, 1), ("RobotGone", 2, 1)]
-    assert counters["dropped.unknown_robot"] == 2
+    assert counters["dropped.unknown_robot"] == 3  # the request, the send, the broadcast
     assert [(what, who) for what, who, _ in watcher.news] == [("left", 2), ("joined", 3)]
     if kind == "memory":
         assert [t for _, _, t in watcher.news] == [1.0, 1.0]  # told at once
