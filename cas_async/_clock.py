@@ -66,6 +66,7 @@ class Clock(ABC):
         self._origin: float | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._pad = 0.0  # loop seconds added to every deadline: see _loop_timer_pad
+        self._next_ids: dict[int, int] = {}  # robot -> the first id it has not used
 
     @property
     @abstractmethod
@@ -186,15 +187,35 @@ class Clock(ABC):
         assert self._origin is not None
         return (loop_time - self._origin) / self._loop_time_per_sim_second()
 
-    def message_id_base(self) -> int:
-        """The first message id of a robot starting now: larger than any id it used before.
+    def id_time(self) -> int:
+        """Now, in message-id units: microseconds of the wall clock.
 
-        Message ids only grow, also across restarts of a robot, so receivers can
-        tell a repeated message from a new one. In real time the base is the wall
-        clock in microseconds (a robot sends far fewer than a million messages a
-        second, so a restarted robot starts above its previous ids).
+        Message ids count from it (see :meth:`message_id_base`), and a receiver
+        refuses an id far beyond its own ``id_time()`` as forged.
         """
         return time.time_ns() // 1000
+
+    def message_id_base(self, robot_id: int) -> int:
+        """The first message id of robot ``robot_id`` starting now: above any it used before.
+
+        Message ids only grow, also across restarts of a robot, so receivers can
+        tell a repeated message from a new one. The base is :meth:`id_time`, or,
+        for a robot that ran before on this clock, the id after its last one
+        (:meth:`ids_used`), whichever is larger: a restart at the same instant, or
+        after a burst of more than one message per microsecond, still goes on
+        above its previous life. A robot that ran in another process starts above
+        its previous ids as long as it sent fewer than a million messages a second.
+        """
+        return max(self.id_time(), self._next_ids.get(robot_id, 0))
+
+    def ids_used(self, robot_id: int, next_id: int) -> None:
+        """Robot ``robot_id`` stopped; ``next_id`` is the first id it did not use."""
+        if next_id > self._next_ids.get(robot_id, 0):
+            self._next_ids[robot_id] = next_id
+
+    def loop_seconds(self, seconds: float) -> float:
+        """How many event-loop seconds ``seconds`` of simulated time last."""
+        return seconds * self._loop_time_per_sim_second()
 
     def timeout(self, seconds: float | None) -> asyncio.Timeout:
         """An ``async with`` block that raises ``TimeoutError`` after ``seconds`` simulated."""
@@ -255,7 +276,7 @@ class VirtualClock(Clock):
         """None: the virtual loop runs each timer at its instant exactly."""
         return 0.0
 
-    def message_id_base(self) -> int:
+    def id_time(self) -> int:
         """Virtual microseconds since the loop began, plus one: reproducible, and growing."""
         loop = self._loop or asyncio.get_running_loop()
         return int(loop.time() * 1_000_000) + 1

@@ -10,18 +10,38 @@ bitmask of the :data:`WINDOW` ids below it. Memory is constant per sender, and
 delivery out of order within the window is fine. An id older than the window
 cannot be judged and is refused as stale.
 
+Ids count from the sender's clock (microseconds), so an id far beyond the
+receiver's own clock cannot be honest: one such id, if believed, would make all of
+the sender's real messages look old. A jump ahead (or a sender's first id) is
+therefore checked against a *horizon*, the receiver's clock plus a slack that
+covers clock skew between hosts and bursts faster than a message per
+microsecond; an id beyond it is refused (:data:`FUTURE`) and moves nothing.
+
 A request handled once but re-sent (its reply was lost) must get the same reply
 again without being handled again: :class:`ReplyCache` keeps the encoded replies
-of the latest requests answered, and the robot sends the kept bytes back.
+of the requests answered within the last ``keep_for`` seconds (longer than any
+asker's retries last), within a byte budget, and the robot sends the kept bytes
+back.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Final
 
 from ._types import RobotId
 
-__all__ = ["DUPLICATE", "FRESH", "STALE", "WINDOW", "ReplyCache", "SenderWindows", "slide"]
+__all__ = [
+    "DUPLICATE",
+    "FRESH",
+    "FUTURE",
+    "ID_SLACK",
+    "STALE",
+    "WINDOW",
+    "ReplyCache",
+    "SenderWindows",
+    "slide",
+]
 
 WINDOW: Final = 1024
 """Message ids per sender below its highest that are still told apart."""
@@ -32,6 +52,12 @@ DUPLICATE: Final = 1
 """Seen before: a network duplicate or a re-sent request."""
 STALE: Final = 2
 """Older than the window: cannot tell, so refused."""
+FUTURE: Final = 3
+"""Beyond the horizon: no honest sender can have used it yet, so refused."""
+
+ID_SLACK: Final = 2**32
+"""Ids a sender may be ahead of the receiver's clock: about 71 minutes of clock
+skew (ids are microseconds), or four billion messages in one virtual instant."""
 
 _MASK: Final = (1 << WINDOW) - 1
 
@@ -54,6 +80,10 @@ def slide(highest: int, mask: int, n: int) -> tuple[int, int, int]:
     if mask & bit:
         return DUPLICATE, highest, mask
     return FRESH, highest, mask | bit
+
+
+def _unbounded() -> int:
+    return 2**64  # beyond any 64-bit message id
 
 
 class _Window:
@@ -80,21 +110,34 @@ class SenderWindows:
         self._windows: dict[RobotId, _Window] = {}
         self._max_senders = max_senders
 
-    def check(self, sender: RobotId, msg_id: int, now: float) -> int:
-        """Records ``msg_id`` from ``sender`` heard at ``now``: FRESH, DUPLICATE or STALE."""
+    def check(
+        self, sender: RobotId, msg_id: int, now: float, horizon: Callable[[], int] = _unbounded
+    ) -> int:
+        """Records ``msg_id`` from ``sender`` heard at ``now``: FRESH, DUPLICATE, STALE or FUTURE.
+
+        ``horizon()`` gives the largest id an honest sender can have used (no limit
+        when omitted); it is asked only for a sender's first id and for jumps of a
+        window or more. A FUTURE id changes nothing, not even when the sender was
+        last heard.
+        """
         window = self._windows.get(sender)
         if window is None:
+            if msg_id > horizon():
+                return FUTURE
             windows = self._windows
             if len(windows) >= self._max_senders:
                 del windows[next(iter(windows))]
             windows[sender] = _Window(msg_id, now)
             return FRESH
-        window.heard = now
         ahead = msg_id - window.highest
         if 0 < ahead < WINDOW:  # newer than all before it: slide()'s common case, inlined
+            window.heard = now
             window.highest = msg_id
             window.mask = ((window.mask << ahead) | 1) & _MASK
             return FRESH
+        if ahead > 0 and msg_id > horizon():
+            return FUTURE
+        window.heard = now
         verdict, window.highest, window.mask = slide(window.highest, window.mask, msg_id)
         return verdict
 
@@ -113,41 +156,65 @@ class SenderWindows:
         return len(self._windows)
 
 
-class ReplyCache:
-    """The encoded replies to each asker's latest requests.
+def _cost(data: bytes) -> int:
+    """Bytes a kept reply counts against the budget.
 
-    A requester re-sends only while it waits, and waits on few requests at once to
-    the same robot, so a few replies per asker cover every repetition; memory then
-    follows the number of askers, not the number of requests ever answered.
+    Robots that pass message objects (``MemoryTransport(pass_objects=True)``) keep
+    the object itself: its size is not known, only the overhead counts.
+    """
+    return (len(data) if type(data) is bytes else 0) + ReplyCache.OVERHEAD
+
+
+class ReplyCache:
+    """The encoded replies to the requests answered lately, kept by age within a budget.
+
+    A reply is kept ``keep_for`` seconds (of whatever clock gives ``now``): an asker
+    that lost it re-sends its request within its retries, and however many other
+    requests it asked meanwhile, the reply is still there. The byte budget bounds
+    memory whatever the traffic; when it is exceeded, the oldest replies go first.
 
     Args:
-        per_asker: replies kept per asker; its oldest goes first.
-        askers: askers kept; the one first seen goes first.
+        keep_for: how long a reply is kept.
+        budget: most bytes kept (replies plus a fixed overhead per reply).
     """
 
-    __slots__ = ("_askers", "_per_asker", "_replies")
+    __slots__ = ("_budget", "_bytes", "_keep_for", "_replies")
 
-    def __init__(self, per_asker: int = 16, askers: int = 1024) -> None:
-        self._replies: dict[RobotId, dict[int, bytes]] = {}
-        self._per_asker = per_asker
-        self._askers = askers
+    OVERHEAD: Final = 200
+    """Bytes a kept reply costs besides its own (key, entry, dictionary slot), roughly."""
 
-    def keep(self, asker: RobotId, request_id: int, data: bytes) -> None:
-        """Remembers ``data`` as the reply sent to ``asker``'s request ``request_id``."""
+    def __init__(self, keep_for: float = 60.0, budget: int = 1 << 20) -> None:
+        self._replies: dict[tuple[RobotId, int], tuple[float, bytes]] = {}  # oldest first
+        self._keep_for = keep_for
+        self._budget = budget
+        self._bytes = 0
+
+    def keep(self, asker: RobotId, request_id: int, data: bytes, now: float) -> None:
+        """Remembers ``data`` as the reply sent at ``now`` to ``asker``'s request ``request_id``."""
         replies = self._replies
-        kept = replies.get(asker)
-        if kept is None:
-            if len(replies) >= self._askers:
-                del replies[next(iter(replies))]
-            kept = replies[asker] = {}
-        kept[request_id] = data
-        if len(kept) > self._per_asker:
-            del kept[next(iter(kept))]
+        old = replies.pop((asker, request_id), None)
+        if old is not None:
+            self._bytes -= _cost(old[1])
+        replies[(asker, request_id)] = (now, data)
+        self._bytes += _cost(data)
+        oldest = now - self._keep_for
+        while replies:
+            key = next(iter(replies))
+            at, kept = replies[key]
+            if at > oldest and self._bytes <= self._budget:
+                break
+            del replies[key]
+            self._bytes -= _cost(kept)
 
     def get(self, asker: RobotId, request_id: int) -> bytes | None:
         """The reply sent to that request, if still kept."""
-        kept = self._replies.get(asker)
-        return None if kept is None else kept.get(request_id)
+        entry = self._replies.get((asker, request_id))
+        return None if entry is None else entry[1]
+
+    @property
+    def size(self) -> int:
+        """Bytes counted against the budget now."""
+        return self._bytes
 
     def __len__(self) -> int:
-        return sum(len(kept) for kept in self._replies.values())
+        return len(self._replies)

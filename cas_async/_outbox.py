@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import copy
 import itertools
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Final, NoReturn, Protocol, final
 
 from ._counters import LayerCounters
@@ -66,6 +66,10 @@ class Sender(Protocol):
         """Counts a message the layer sent against a rule."""
 
 
+def _no_time() -> float:
+    return 0.0
+
+
 @final
 class _NotStarted:
     """The wire codec of a robot that has not started: every use says so."""
@@ -104,7 +108,16 @@ class Outbox:
         replies_resent: kept replies sent again to a repeated request.
     """
 
-    __slots__ = ("_codec", "_drops", "_endpoint", "_ids", "_replies", "replies_resent", "robot_id")
+    __slots__ = (
+        "_codec",
+        "_drops",
+        "_endpoint",
+        "_ids",
+        "_now",
+        "_replies",
+        "replies_resent",
+        "robot_id",
+    )
 
     def __init__(self, robot_id: RobotId, drops: DropLog) -> None:
         self.robot_id = robot_id
@@ -113,20 +126,36 @@ class Outbox:
         self._codec: WireCodec = _NotStarted(robot_id)
         self._endpoint: Endpoint = Unconnected(robot_id)
         self._replies = ReplyCache()
+        self._now: Callable[[], float] = _no_time
         self.replies_resent = 0
 
     # -- lifecycle ---------------------------------------------------------------------
 
-    def connect(self, codec: WireCodec, endpoint: Endpoint | None, first_id: int) -> None:
+    def connect(
+        self,
+        codec: WireCodec,
+        endpoint: Endpoint | None,
+        first_id: int,
+        *,
+        now: Callable[[], float],
+        replies: ReplyCache,
+    ) -> None:
         """Sends with ``codec`` through ``endpoint`` (``None``: none), ids from ``first_id``.
 
         Ids only grow, also across restarts of a robot: receivers tell a re-sent or
-        duplicated message from a new one by (robot id, message id).
+        duplicated message from a new one by (robot id, message id). ``replies``
+        keeps the replies sent, dated by ``now()``, for repeated requests.
         """
         self._codec = codec
         if endpoint is not None:
             self._endpoint = endpoint
         self._ids = itertools.count(first_id)
+        self._now = now
+        self._replies = replies
+
+    def next_id(self) -> int:
+        """The first message id not used yet (taking it: call when the robot stops)."""
+        return next(self._ids)
 
     def close(self) -> None:
         """Closes the endpoint; sending then raises ``RobotStateError`` (idempotent)."""
@@ -145,7 +174,6 @@ class Outbox:
     def knows(self, robot_id: RobotId) -> bool:
         """Whether a message to ``robot_id`` (or a reply to it) can be sent."""
         return self._endpoint.knows(robot_id)
-
 
     # -- stamping ----------------------------------------------------------------------
 
@@ -260,7 +288,7 @@ class Outbox:
         response.src_layer = response.dst_layer = level
         response.corr_id = request_id
         data = self._codec.encode(response)
-        self._replies.keep(asker, request_id, data)
+        self._replies.keep(asker, request_id, data, self._now())
         self.transmit(counters, asker, data, response.__class__, unknown="reply_undeliverable")
 
     def resend_reply(self, asker: RobotId, request_id: int) -> None:

@@ -9,10 +9,14 @@ checked in this order:
 * ``decode.<reason>``, ``stack_mismatch``: not a valid datagram of this stack;
 * ``cross_level``, ``no_such_layer``: external messages connect same levels only;
 * ``from_own_id``: it claims to come from this very robot;
-* ``spoofed_sender``: the transport knows who sent it (by source address, or an
-  authenticated id) and the header claims someone else;
+* ``spoofed_sender``: the header claims a robot the transport knows, but the
+  transport names another sender (by source address, or an authenticated id),
+  or none: a datagram from an address that is no robot's speaks for nobody;
 * ``unknown_sender``: it claims a robot this robot cannot reach (a reply to it
   could only fail);
+* ``future_id``: its message id is beyond any an honest sender can have used yet
+  (ids count from the sender's clock, see :mod:`cas_async._dedup`): a forged id
+  that would otherwise make the sender's real messages look old;
 * ``duplicate``, ``stale``: its id was seen before from that sender, or is too
   old to tell (see :mod:`cas_async._dedup`). A duplicate of a request already
   answered gets the kept reply again, so a requester whose reply was lost
@@ -27,7 +31,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Final, final
 
-from ._dedup import DUPLICATE, SenderWindows
+from ._dedup import FUTURE, STALE, SenderWindows
 from ._errors import DecodeError, StackMismatchError
 from ._fingerprint import describe_fingerprint
 from ._layer_runtime import LayerRuntime
@@ -42,6 +46,10 @@ _MISMATCHES_EXPLAINED: Final = 16
 """Foreign stacks whose first datagram is explained in the log; the rest are counted."""
 
 _NEGOTIATION: Final = MsgType.NEGOTIATION
+
+
+def _no_horizon() -> int:
+    return 0
 
 
 def _describe(data: object) -> str:
@@ -65,6 +73,7 @@ class Reception:
     __slots__ = (
         "_decode",
         "_drops",
+        "_horizon",
         "_layers",
         "_log",
         "_mismatches_seen",
@@ -88,13 +97,19 @@ class Reception:
         self._drops = drops
         self._log = log
         self._now: Callable[[], float] | None = None  # set while running
+        self._horizon: Callable[[], int] = _no_horizon
         self._mismatches_seen: set[int] = set()
         self._senders = SenderWindows()
 
-    def open(self, now: Callable[[], float]) -> None:
-        """Starts delivering with the outbox's codec; ``now()`` dates each sender's news."""
+    def open(self, now: Callable[[], float], horizon: Callable[[], int]) -> None:
+        """Starts delivering with the outbox's codec.
+
+        ``now()`` dates each sender's news; ``horizon()`` is the largest message id
+        an honest sender can have used yet.
+        """
         self._decode = self._outbox.codec.decode
         self._now = now
+        self._horizon = horizon
 
     def close(self) -> None:
         """Stops delivering: what arrives from now on is counted as ``not_running``."""
@@ -131,24 +146,30 @@ class Reception:
             )
         elif claimed == self._robot_id:
             self._drops.drop("from_own_id", f"external {msg!r} claims to come from this robot")
-        elif sender is not None and claimed != sender:
-            self._drops.drop("spoofed_sender", f"external {msg!r} was sent by robot {sender}")
-        elif sender is None and not self._outbox.knows(claimed):
-            # A sender the transport named is one it knows; only an anonymous one is looked up.
-            self._drops.drop(
-                "unknown_sender", f"external {msg!r} from a robot this one cannot reach"
-            )
+        elif claimed != sender:
+            # The transport names every sender it knows (source address, signature):
+            # a claim it does not confirm, or a datagram from nobody it knows, is refused.
+            if sender is not None or self._outbox.knows(claimed):
+                by = f"robot {sender}" if sender is not None else "an address that is no robot's"
+                self._drops.drop("spoofed_sender", f"external {msg!r} was sent by {by}")
+            else:
+                self._drops.drop(
+                    "unknown_sender", f"external {msg!r} from a robot this one cannot reach"
+                )
         else:
-            seen = self._senders.check(claimed, msg.msg_id, now())
+            seen = self._senders.check(claimed, msg.msg_id, now(), self._horizon)
             if seen:
-                self._repeated(msg, seen == DUPLICATE)
+                self._repeated(msg, seen)
             elif not layers[level].accept_external(msg):
                 # Refused by a full inbox: a copy sent again must not count as a repeat.
                 self._senders.forget(claimed, msg.msg_id)
 
-    def _repeated(self, msg: Message, duplicate: bool) -> None:
-        if not duplicate:
+    def _repeated(self, msg: Message, verdict: int) -> None:
+        if verdict == STALE:
             self._drops.drop("stale", f"{msg!r} is too old to tell whether it was seen")
+            return
+        if verdict == FUTURE:
+            self._drops.drop("future_id", f"{msg!r}: no robot can have used that id yet (forged?)")
             return
         if msg.msg_type == _NEGOTIATION and not msg.corr_id:
             self._outbox.resend_reply(msg.robot_id, msg.msg_id)

@@ -30,6 +30,7 @@ from ._channel import DEFAULT_QUEUE_LIMIT
 from ._clock import Clock, ScaledClock
 from ._codec import DEFAULT_MAX_DATAGRAM, MIN_DATAGRAM, Codec
 from ._counters import LayerCounters
+from ._dedup import ID_SLACK, ReplyCache
 from ._errors import ConfigurationError, RobotStateError
 from ._fingerprint import stack_fingerprint
 from ._hooks import Overrides
@@ -75,6 +76,10 @@ class Robot:
             are never dropped).
         restart: restart a layer that raises, within these limits, instead of
             stopping the robot (see :class:`~cas_async.RestartPolicy`).
+        reply_memory: simulated seconds a reply to another robot is kept, to answer
+            a repetition of its request (its asker lost the reply): longer than
+            any asker's retries last (``(retries + 1) * timeout``). Kept replies
+            take at most 1 MiB; beyond it the oldest go first.
     """
 
     def __init__(
@@ -88,11 +93,16 @@ class Robot:
         max_datagram_size: int = DEFAULT_MAX_DATAGRAM,
         queue_limit: int = DEFAULT_QUEUE_LIMIT,
         restart: RestartPolicy | None = None,
+        reply_memory: float = 60.0,
     ) -> None:
         if type(robot_id) is not int:
             raise ConfigurationError(f"robot_id must be an int, got {robot_id!r}")
         if not layers:
             raise ConfigurationError(f"robot {robot_id}: a robot needs at least one layer")
+        if not reply_memory >= 0:
+            raise ConfigurationError(
+                f"robot {robot_id}: reply_memory must be >= 0 seconds, got {reply_memory!r}"
+            )
         if max_datagram_size < MIN_DATAGRAM or queue_limit < 1:
             raise ConfigurationError(
                 f"robot {robot_id}: max_datagram_size must be at least {MIN_DATAGRAM} bytes "
@@ -103,6 +113,7 @@ class Robot:
         self.clock: Clock = clock if clock is not None else ScaledClock(1.0)
         self.queue_limit = queue_limit
         self.restart = restart
+        self.reply_memory = reply_memory
         self._messages = None if messages is None else tuple(messages)
         self._max_datagram_size = max_datagram_size
         self._log = logger_for(robot_id)
@@ -263,10 +274,11 @@ class Robot:
             )
         specs = specs_for(self._messages)  # refuses an unregistered class before any socket
         fingerprint = stack_fingerprint(len(self._runtimes), specs)
-        first_id = self.clock.message_id_base()
+        first_id = self.clock.message_id_base(self.robot_id)
+        kept = ReplyCache(keep_for=self.clock.loop_seconds(self.reply_memory))
         if transport is None:
             codec = Codec(specs, fingerprint, self._max_datagram_size)
-            self._outbox.connect(codec, None, first_id)
+            self._outbox.connect(codec, None, first_id, now=loop.time, replies=kept)
         else:
             endpoint = await transport.open(self.robot_id, self._reception)
             try:
@@ -276,7 +288,7 @@ class Robot:
                 endpoint.close()  # the socket must not outlive a robot that never started
                 self._state = RobotState.STOPPED
                 raise
-            self._outbox.connect(wire, endpoint, first_id)
+            self._outbox.connect(wire, endpoint, first_id, now=loop.time, replies=kept)
         self._state = RobotState.OPEN
 
     def start(self) -> None:
@@ -292,7 +304,8 @@ class Robot:
         loop = asyncio.get_running_loop()
         self.clock.start()
         self._state = RobotState.RUNNING
-        self._reception.open(loop.time)
+        clock = self.clock
+        self._reception.open(loop.time, lambda: clock.id_time() + ID_SLACK)
         for runtime in self._runtimes:
             runtime.start()
         self._supervisor = loop.create_task(
@@ -328,6 +341,8 @@ class Robot:
         for runtime in self._runtimes:
             runtime.close()
         self._outbox.close()
+        if self._state is not RobotState.CREATED:  # it had ids: the next life goes on above
+            self.clock.ids_used(self.robot_id, self._outbox.next_id())
         self._state = RobotState.STOPPED
 
     def take_failure(self) -> BaseException | None:

@@ -102,8 +102,10 @@ class HostileDatagrams:
         partner: int,
         levels: int,
         messages: Sequence[type[Message]] = (Note, Query, Answer),
+        horizon: Callable[[], int] = lambda: 2**32,
     ) -> None:
         self._codec = codec
+        self._horizon = horizon  # the largest id the victim believes (see cas_async._dedup)
         self._rng = rng
         self.victim = victim
         self.attacker = attacker
@@ -189,8 +191,8 @@ class HostileDatagrams:
             msg = self._codec.decode(data)
         except DecodeError:
             return
-        # (Ids within a million of 2**64 are left alone: msgpack carries no higher.)
-        if msg.robot_id == self.attacker and self._next_id <= msg.msg_id < 2**64 - 2**20:
+        # An id beyond the victim's horizon is refused (future_id) and moves nothing.
+        if msg.robot_id == self.attacker and self._next_id <= msg.msg_id <= self._horizon():
             self._next_id = msg.msg_id + 1
 
     # -- the kinds -------------------------------------------------------------------

@@ -305,7 +305,7 @@ async def test_another_robot_cannot_answer_an_internal_request(start_robot) -> N
     (question,) = stack[1].negotiations
     forged = Answer(666, 0)  # robot 2 guesses the id of robot 1's internal request
     forged.msg_id, forged.robot_id, forged.corr_id = 7, 2, question.msg_id
-    network.deliver(1, Codec.for_stack(2, STACK_MESSAGES).encode(forged))
+    network.deliver(1, Codec.for_stack(2, STACK_MESSAGES).encode(forged), 2)  # from robot 2
     await settle()
     assert not asking.done()
     assert robot.dropped == {"reply_from_wrong_place": 1}

@@ -34,6 +34,7 @@ from cas_async import (
     UdpTransport,
     VirtualClock,
 )
+from cas_async._dedup import ID_SLACK
 from cas_async.transport import Codec
 from tests.fuzz_datagrams import KINDS, HostileDatagrams, kinds_in_turn
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
@@ -62,7 +63,7 @@ EXPECTED: Final[dict[str, set[str]]] = {
     "random_bytes": DECODE,
     "truncated": {"decode.malformed"},
     "byte_flipped": DECODE
-    | {ACCEPTED, "cross_level", "no_such_layer", "from_own_id", "spoofed_sender"}
+    | {ACCEPTED, "cross_level", "no_such_layer", "from_own_id", "spoofed_sender", "future_id"}
     | {"duplicate", "stale", "duplicate_reply", "late_reply", "reply_from_wrong_place"},
     "wrong_type_id": {"decode.unknown_type"},
     "wrong_field_types": {"decode.wrong_type", "decode.wrong_arity"},
@@ -165,6 +166,7 @@ async def attack(
         attacker=ATTACKER,
         partner=PARTNER,
         levels=1,
+        horizon=lambda: victim.clock.id_time() + ID_SLACK,
     )
     turns = kinds_in_turn(rng, total, burst)
     table: dict[str, Counter[str]] = {kind: Counter() for kind in KINDS}
@@ -305,12 +307,6 @@ def test_mission_completes_under_20k_hostile_datagrams_in_memory_on_virtual_time
     logs_are_short(caplog)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="a datagram from an address nobody entered (sender None) may claim any known "
-    "robot; one with a huge message id makes that robot's real messages stale",
-)
 async def test_a_stranger_claiming_the_partner_cannot_silence_it() -> None:
     transport = UdpTransport()
     victim_layer, partner_layer = Recorder(), Recorder()

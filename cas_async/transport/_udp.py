@@ -66,6 +66,9 @@ class UdpDirectory:
         # Source address -> robot: how a received datagram's sender is known. IPv6
         # source addresses come as (host, port, flowinfo, scope_id).
         self._senders: dict[tuple[Any, ...], RobotId] = {}
+        # Port -> robot, for robots entered at a wildcard address (0.0.0.0, ::): their
+        # datagrams come from whatever interface address the kernel picks.
+        self._wildcards: dict[int, RobotId] = {}
         self._watchers: list[DatagramSink] = []  # told when a robot is entered or removed
         for robot_id, (host, port) in (addresses or {}).items():
             self.add(robot_id, host, port)
@@ -93,6 +96,8 @@ class UdpDirectory:
         self._addresses[robot_id] = (host, port)
         for source in _source_forms(host, port):
             self._senders[source] = robot_id
+        if _is_wildcard(host):
+            self._wildcards[port] = robot_id
         if new:
             for watcher in list(self._watchers):
                 watcher.robot_joined(robot_id)
@@ -110,6 +115,8 @@ class UdpDirectory:
         for source in _source_forms(*old):
             if self._senders.get(source) == robot_id:
                 del self._senders[source]
+        if self._wildcards.get(old[1]) == robot_id:
+            del self._wildcards[old[1]]
         return True
 
     def watch(self, sink: DatagramSink) -> None:
@@ -122,8 +129,17 @@ class UdpDirectory:
             self._watchers.remove(sink)
 
     def sender(self, source: Any) -> RobotId | None:
-        """The robot listening at ``source`` (an address a datagram came from), or ``None``."""
-        return self._senders.get(source)
+        """The robot that sends from ``source`` (a datagram's source address), or ``None``.
+
+        A robot entered at a wildcard address (``0.0.0.0``, ``::``) sends from any of
+        the host's addresses: it is known by its port alone. On its host nobody else
+        can bind that port, but a stranger on another host can send from it: without
+        a swarm key, enter robots at specific addresses.
+        """
+        robot = self._senders.get(source)
+        if robot is None and self._wildcards:
+            robot = self._wildcards.get(source[1])
+        return robot
 
     def get(self, robot_id: RobotId) -> HostPort | None:
         """The address of ``robot_id``, or ``None``."""
@@ -150,6 +166,14 @@ def _is_loopback(host: str) -> bool:
         return False
 
 
+def _is_wildcard(host: str) -> bool:
+    """Whether ``host`` is the unspecified address, bound to every interface."""
+    try:
+        return ipaddress.ip_address(host).is_unspecified
+    except ValueError:
+        return False
+
+
 def _source_forms(host: str, port: int) -> tuple[tuple[Any, ...], ...]:
     """How a datagram from ``host:port`` names its source (IPv6 adds flowinfo, scope)."""
     if ":" in host:
@@ -168,14 +192,18 @@ class _Wire(Protocol):
 class _Protocol(asyncio.DatagramProtocol):
     """Hands datagrams to the robot, naming the sender by its source address."""
 
-    __slots__ = ("_senders", "_sink")
+    __slots__ = ("_directory", "_senders", "_sink")
 
     def __init__(self, sink: DatagramSink, directory: UdpDirectory) -> None:
         self._sink = sink
         self._senders = directory._senders  # read per datagram: skip the method call
+        self._directory = directory
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        self._sink.datagram_received(data, self._senders.get(addr))
+        sender = self._senders.get(addr)
+        if sender is None:  # a wildcard-bound robot, a stranger, or nobody known
+            sender = self._directory.sender(addr)
+        self._sink.datagram_received(data, sender)
 
     def transport_dropped(self, reason: str, detail: str) -> None:
         self._sink.transport_dropped(reason, detail)
