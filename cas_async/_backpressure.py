@@ -33,7 +33,9 @@ class Flow:
 
     def __init__(self, inbox: Channel[Any]) -> None:
         self._inbox = inbox
-        self._waiting_on: Flow | None = None  # the layer this one waits on
+        # The layers this one waits on, once per wait: a layer may wait on several at
+        # once (requests to two layers gathered), and on one twice.
+        self._waiting_on: list[Flow] = []
         self.congested: Flow | None = None
         """The layer whose inbox this one filled since it last waited for room.
 
@@ -51,27 +53,34 @@ class Flow:
         if target is None:
             return
         while target._inbox.crowded and not target.waits_on(self):
-            self._waiting_on = target
+            self._waiting_on.append(target)
             try:
                 await target._inbox.room()
             finally:
-                self._waiting_on = None
+                self._waiting_on.remove(target)
 
     def waits_on(self, other: Flow) -> bool:
         """Whether this layer waits, directly or along a chain, on ``other``."""
-        along: Flow | None = self
-        while along is not None:
-            if along is other:
+        seen: set[int] = set()
+        along = [self]
+        while along:
+            flow = along.pop()
+            if flow is other:
                 return True
-            along = along._waiting_on
+            if id(flow) not in seen:
+                seen.add(id(flow))
+                along.extend(flow._waiting_on)
         return False
 
-    def asking(self, other: Flow | None) -> None:
-        """This layer waits for ``other``'s answer to a request (``None``: no longer).
+    def asking(self, other: Flow) -> None:
+        """This layer waits for ``other``'s answer to a request (until :meth:`answered`).
 
         While it waits it handles nothing, so a layer waiting for room in this
         layer's inbox must not wait on it: those are released to look again.
         """
-        self._waiting_on = other
-        if other is not None:
-            self._inbox.release_room_waiters()
+        self._waiting_on.append(other)
+        self._inbox.release_room_waiters()
+
+    def answered(self, other: Flow) -> None:
+        """This layer's request to ``other`` is over (answered, timed out or cancelled)."""
+        self._waiting_on.remove(other)

@@ -408,14 +408,15 @@ class LayerRuntime:
         by_type = counters.internal_by_type
         by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
         self.carry(msg)
-        self.flow.asking(self.stack[level].flow)  # it handles nothing while it waits
+        asked = self.stack[level].flow
+        self.flow.asking(asked)  # it handles nothing while it waits
         try:
             answer = await waiting
             if reply is None or isinstance(answer, reply):  # check_reply's common case
                 return answer
             return check_reply(answer, reply, msg, self.log.prefix)
         finally:
-            self.flow.asking(None)
+            self.flow.answered(asked)
             self.requests.forget(msg.msg_id)
 
     def expect(

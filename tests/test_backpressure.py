@@ -261,17 +261,7 @@ class Helper(Layer):
 @pytest.mark.parametrize(
     "producer_first",
     [
-        pytest.param(
-            True,
-            id="producer-asked-first",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="Layer._waiting_on holds one layer: a second concurrent "
-                "request_layer() overwrites it, so the producer (waiting for room) no "
-                "longer sees that the consumer waits on it, waits again, and the "
-                "consumer's request to it times out",
-            ),
-        ),
+        pytest.param(True, id="producer-asked-first"),
         pytest.param(False, id="producer-asked-last"),
     ],
 )
