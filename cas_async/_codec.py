@@ -8,19 +8,19 @@ Most messages take a fast path built on msgspec (see :mod:`cas_async._codegen`):
 encoding packs the header and fields, once a generated check has vouched for
 their types, and decoding reads the fingerprint and type id, then parses the
 whole datagram against the class's exact wire types in C. Anything that path
-declines takes the precise one: a reused ``msgpack.Packer``, or an unpack (arrays
-as tuples) followed by a decoder generated once per message class, which checks
-simple fields with inlined ``type(v) is int`` tests and calls the converters of
-:mod:`cas_async._schema` when a field needs it. Both paths give the same message
-or the same error; only their cost differs. Every problem with untrusted bytes
-raises :class:`~cas_async._errors.DecodeError`; nothing is ever unpickled.
+declines takes the precise one: a reused ``msgpack.Packer``, or a bounded read of
+the datagram item by item (:mod:`cas_async._datagram`: arrays as tuples) followed
+by a decoder generated once per message class, which checks simple fields with
+inlined ``type(v) is int`` tests and calls the converters of :mod:`cas_async._schema`
+when a field needs it. Both paths give the same message or the same error; only
+their cost differs. Every problem with untrusted bytes raises
+:class:`~cas_async._errors.DecodeError`; nothing is ever unpickled.
 
-Decoding allocates a bounded amount of memory whatever a datagram claims (see
-:attr:`Codec.max_decode_bytes`). msgpack's C unpacker reserves the slots of an
-array when it reads the array's header, before any item arrives, and keeps up to
-1024 arrays open at once; so it reads arrays of at most 256 items, and the rare
-datagram with a longer array is read again by msgpack's pure-Python unpacker,
-which only allocates for items it has actually read.
+Decoding is bounded whatever a datagram claims. Memory: see
+:attr:`Codec.max_decode_bytes`. Time: the precise path first checks the whole
+structure without building anything (a few nanoseconds a byte), then builds only
+what the header and the class's declared field types call for, so a hostile
+datagram costs about what a well-formed one of its size does.
 """
 
 from __future__ import annotations
@@ -31,10 +31,9 @@ from typing import Any, Final
 import msgpack
 import msgspec
 import numpy as np
-from msgpack import fallback
-from msgpack import unpackb as _unpackb
 
-from ._codegen import HEADER_LEN, compiled, undispatchable
+from ._codegen import HEADER_LEN, compiled, undispatchable, wrong_arity
+from ._datagram import FieldPlan, read_datagram
 from ._errors import DecodeError, EncodeError
 from ._fingerprint import stack_fingerprint
 from ._message import Message, MessageSpec, nested_to_wire, spec_of, specs_for
@@ -57,14 +56,8 @@ tuple from msgpack, then the list it becomes); chains of one-entry maps, two byt
 each, about 115; empty maps (one byte each) about 80.
 """
 
-_FAST_ITEMS: Final = 256
-"""Longest array msgpack's C unpacker reads; longer ones take the pure-Python unpacker."""
-
-_OPEN_ARRAYS: Final = 1024
-"""Arrays msgpack's C unpacker keeps open at once (nesting deeper is malformed)."""
-
-_RESERVED_PER_ARRAY: Final = 64
-"""An array's own allocation besides its slots: tuple header and garbage-collector link."""
+_RESERVED_PER_ITEM: Final = 8
+"""What msgpack reserves per array item it reads (one pointer), before building it."""
 
 _DECODE_OVERHEAD: Final = 256 * 1024
 """Fixed allowance of a decode: unpacker state, frames, one error message."""
@@ -90,14 +83,14 @@ class Codec:
     whatever it claims (arrays or maps of 2**32 items, strings of 4 GiB, arrays
     nested 1024 deep, numpy arrays of 10**9 elements)::
 
-        max_decode_bytes = 1024 * (8 * 256 + 64) + 256 * max_size + 256 KiB
+        max_decode_bytes = (8 + 1 + 256) * max_size + 256 KiB
 
-    The first term (about 2 MiB) is msgpack reserving 8 bytes per declared item
-    for each of up to 1024 open arrays of up to 256 items (longer arrays are read
-    by a slower unpacker that reserves nothing); the second, the Python objects
-    built from the datagram's bytes, at most 256 bytes per byte; the third, a
-    fixed allowance. With the default 64 KiB datagrams that is about 19 MiB, all
-    of it freed when ``decode`` returns.
+    Every length a datagram claims is checked against the bytes present before
+    anything is built, so msgpack reserves at most 8 bytes per item there is (the
+    first term), its buffer holds one copy of the datagram (the second), and the
+    Python objects built take at most 256 bytes per byte; the last is a fixed
+    allowance. With the default 64 KiB datagrams that is about 17 MiB, all of it
+    freed when ``decode`` returns.
 
     Args:
         specs: the message types this robot accepts, by type id.
@@ -109,12 +102,14 @@ class Codec:
     """Receivers get bytes, never the objects sent."""
 
     __slots__ = (
+        "_arity",
         "_by_class",
         "_by_id",
         "_fast",
         "_fast_encoders",
         "_fast_pack",
         "_pack",
+        "_plans",
         "_prefix_length",
         "_prefix_lengths",
         "fingerprint",
@@ -133,6 +128,9 @@ class Codec:
         self.max_size = max_size
         generated = [compiled(spec) for spec in specs.values()]
         self._by_id = {c.spec.type_id: c.decode for c in generated}
+        self._arity = {c.spec.type_id: (c.spec.name, len(c.spec.field_names)) for c in generated}
+        # Per type id, how the precise path reads each field (see _datagram).
+        self._plans = {c.spec.type_id: _plans(c.spec) for c in generated}
         self._by_class = {c.spec.cls: c for c in generated}
         # A datagram of a fast class starts with bytes known in advance: the array
         # header (its arity is fixed), our fingerprint, its type id. Those bytes pick
@@ -174,8 +172,8 @@ class Codec:
     @property
     def max_decode_bytes(self) -> int:
         """Most bytes decoding one datagram allocates at once (see the class docs)."""
-        reserved = _OPEN_ARRAYS * (8 * _FAST_ITEMS + _RESERVED_PER_ARRAY)
-        return reserved + _BYTES_PER_BYTE * self.max_size + _DECODE_OVERHEAD
+        per_byte = _RESERVED_PER_ITEM + 1 + _BYTES_PER_BYTE  # reservations, buffer, objects
+        return per_byte * self.max_size + _DECODE_OVERHEAD
 
     def encode(self, msg: Message) -> bytes:
         """The datagram for ``msg``.
@@ -235,21 +233,20 @@ class Codec:
         return self._decode_precisely(data)
 
     def _decode_precisely(self, data: bytes) -> Message:
-        """Decodes with msgpack and the generated checks: the precise error, or the message."""
-        try:
-            # Only the array limit is given: strings, bytes, ext types and maps are
-            # limited to len(data) by default (and msgpack allocates them only once
-            # their bytes are there); every keyword costs time on this hot path.
-            t = _unpackb(data, use_list=False, strict_map_key=False, max_array_len=_FAST_ITEMS)
-        except Exception as exc:  # the unpacker raises many types; all mean "malformed"
-            t = self._unpack_long_arrays(data, exc)
+        """Decodes with the generated checks: the precise error, or the message.
+
+        Read item by item (see :mod:`cas_async._datagram`), so that a hostile
+        datagram costs about what a well-formed one of its size does.
+        """
+        header, fields, count = read_datagram(data, self._plans.get)
         fingerprint = self.fingerprint
+        if fields is None:  # a header only: too short, another stack, unknown type, arity
+            arity = self._arity.get(header[1]) if len(header) == HEADER_LEN else None
+            if arity is None:
+                raise undispatchable(header, fingerprint)
+            raise wrong_arity(*arity, header, count, fingerprint)
         try:
-            try:
-                decode = self._by_id[t[1]]
-            except Exception:  # not an array, too short, unhashable or unknown type id
-                raise undispatchable(t, fingerprint) from None
-            return decode(t, fingerprint)  # checks the header, fingerprint included
+            return self._by_id[header[1]]((*header, *fields), fingerprint)
         except DecodeError:
             raise
         except RecursionError:  # bare list/dict fields or recursive messages, nested deeply
@@ -257,29 +254,17 @@ class Codec:
         except Exception as exc:  # a converter's oversight must not reach the robot
             raise DecodeError(f"cannot decode: {_brief_error(exc)}") from None
 
-    def _unpack_long_arrays(self, data: bytes, exc: Exception) -> Any:
-        """Unpacks a datagram the C unpacker refused for a long array, else explains.
 
-        The pure-Python unpacker builds arrays as items arrive, so a datagram
-        claiming long arrays it does not hold costs only what it holds; it is about
-        20 times slower, which only datagrams with arrays over 256 items pay.
-        """
-        if type(exc) is not ValueError or "max_array_len" not in str(exc):
-            raise DecodeError(f"not a msgpack datagram: {_brief_error(exc)}") from None
-        size = self.max_size  # no item, string or entry can be longer than the datagram
-        try:
-            return fallback.unpackb(
-                data,
-                use_list=False,
-                strict_map_key=False,
-                max_array_len=size,
-                max_map_len=size,
-                max_str_len=size,
-                max_bin_len=size,
-                max_ext_len=size,
-            )
-        except Exception as again:
-            raise DecodeError(f"not a msgpack datagram: {_brief_error(again)}") from None
+def _plans(spec: MessageSpec) -> tuple[FieldPlan, ...]:
+    """How the precise path reads each field of ``spec`` (see :mod:`cas_async._datagram`)."""
+    return tuple(
+        FieldPlan(
+            f"{spec.name}.{name}",
+            kind.scalar,
+            None if kind.wire is None else msgspec.msgpack.Decoder(kind.wire).decode,
+        )
+        for name, kind in zip(spec.field_names, spec.field_types, strict=True)
+    )
 
 
 def _prefix(spec: MessageSpec, fingerprint: int) -> bytes:

@@ -53,7 +53,7 @@ from ._fingerprint import describe_fingerprint
 from ._message import HEADER_FIELDS, Message, MessageSpec, MsgType
 from ._schema import FieldType, shown
 
-__all__ = ["HEADER_LEN", "Compiled", "compiled", "undispatchable"]
+__all__ = ["HEADER_LEN", "Compiled", "compiled", "undispatchable", "wrong_arity"]
 
 HEADER_LEN: Final = 2 + len(HEADER_FIELDS)
 """Fingerprint and type id, then the header fields."""
@@ -119,12 +119,20 @@ def undispatchable(t: Any, fingerprint: int) -> DecodeError:
     )
 
 
-def _wrong_arity(name: str, expected: int, t: Any, fingerprint: int) -> DecodeError:
-    problem = _header_problem(t, fingerprint)  # e.g. another stack's version of this message
+def wrong_arity(name: str, expected: int, header: Any, count: int, fingerprint: int) -> DecodeError:
+    """Why a datagram of ``count`` items with this ``header`` does not fit class ``name``."""
+    problem = _header_problem(header, fingerprint)  # e.g. another stack's version of it
     if problem is not None:
         return problem
-    got = len(t) - HEADER_LEN
+    got = count - HEADER_LEN
     return DecodeError(f"{name}: expected {expected} fields, got {got}", "wrong_arity")
+
+
+def _wrong_arity(name: str, expected: int, t: Any, fingerprint: int) -> DecodeError:
+    try:
+        return wrong_arity(name, expected, t[:HEADER_LEN], len(t), fingerprint)
+    except TypeError:  # not even a sequence
+        return DecodeError("not a datagram: expected an array with a header", "bad_header")
 
 
 def _encoder_source(spec: MessageSpec) -> list[str]:

@@ -65,6 +65,8 @@ class FieldType:
     wire: Any = None
     """The type msgspec checks wire values against, exactly as ``convert`` would accept
     them, or None when only ``convert`` can (see :mod:`cas_async._codegen`)."""
+    scalar: bool = False
+    """Whether wire values are never arrays or maps (numbers, text, bytes, None...)."""
 
 
 def shown(value: Any) -> str:
@@ -101,7 +103,7 @@ def _exact(kind: type, name: str) -> FieldType:
             return value
         raise _fail(path, name, value)
 
-    return FieldType(name, convert, f"type({{v}}) is {name}", kind, wire=kind)
+    return FieldType(name, convert, f"type({{v}}) is {name}", kind, wire=kind, scalar=True)
 
 
 def _float_convert(value: Any, path: str) -> float:
@@ -124,9 +126,9 @@ _SIMPLE: Final[dict[Any, FieldType]] = {
     str: _exact(str, "str"),
     bytes: _exact(bytes, "bytes"),
     # msgspec, like _float_convert, accepts an int for a float and returns a float.
-    float: FieldType("float", _float_convert, "type({v}) is float", wire=float),
-    type(None): FieldType("None", _none_convert, "{v} is None", wire=type(None)),
-    None: FieldType("None", _none_convert, "{v} is None", wire=type(None)),
+    float: FieldType("float", _float_convert, "type({v}) is float", wire=float, scalar=True),
+    type(None): FieldType("None", _none_convert, "{v} is None", wire=type(None), scalar=True),
+    None: FieldType("None", _none_convert, "{v} is None", wire=type(None), scalar=True),
 }
 
 
@@ -263,7 +265,8 @@ def _union(options: tuple[FieldType, ...], name: str) -> FieldType:
     plain = [o for o in options if o.text != "None"]
     if len(options) == 2 and len(plain) == 1 and plain[0].wire is not None:
         wire = plain[0].wire | None  # only ``T | None``: msgspec's other unions differ
-    return FieldType(name, convert, fast, wire=wire)
+    scalar = all(option.scalar for option in options)
+    return FieldType(name, convert, fast, wire=wire, scalar=scalar)
 
 
 def _int_enum(kind: type[enum.IntEnum]) -> FieldType:
@@ -275,7 +278,7 @@ def _int_enum(kind: type[enum.IntEnum]) -> FieldType:
             return members[value]
         raise _fail(path, f"{name} (one of {sorted(members)})", value)
 
-    return FieldType(f"{name}{sorted(members)}", convert, wire=kind)
+    return FieldType(f"{name}{sorted(members)}", convert, wire=kind, scalar=True)
 
 
 def _shown_shape(shape: tuple[Any, ...]) -> str:

@@ -464,7 +464,11 @@ def check_decoded(data: bytes, msg: Message) -> None:
     assert type(msg) in ACCEPTED
     # Only a datagram with our exact fingerprint, a known type id and six int header
     # items decodes...
-    row = msgpack.unpackb(data, use_list=False, strict_map_key=False)
+    # (Read as the codec reads it, item by item: msgpack's one-shot unpackb stops at
+    # 1024 levels of nesting, where its streaming unpacker does not.)
+    unpacker = msgpack.Unpacker(use_list=False, strict_map_key=False)
+    unpacker.feed(data)
+    row = tuple(unpacker.unpack() for _ in range(unpacker.read_array_header()))
     assert type(row[0]) is int
     assert row[0] == CODEC.fingerprint
     assert row[1] == spec_of(type(msg)).type_id

@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 
 from cas_async import DecodeError, Message, MsgType, message, spec_of
 from cas_async._codec import MIN_DATAGRAM
+from cas_async._datagram import MAX_NESTING
 from cas_async._message import specs_for
 from cas_async.transport import Codec, stack_fingerprint
 
@@ -160,7 +161,7 @@ def bound_for(data: bytes) -> int:
     return Codec(SPECS, FP, max(MIN_DATAGRAM, len(data))).max_decode_bytes
 
 
-DEEP = 1000  # below msgpack's 1024 open arrays, so the whole chain is unpacked
+DEEP = 900  # below the nesting the structure check allows (about 990), so it is all read
 SHALLOW = 400  # what the converters of bare list/dict fields still take (recursion limit)
 
 REFUSED = [
@@ -235,7 +236,7 @@ REFUSED = [
     pytest.param(
         datagram(
             LimBareDict,
-            b"\x81" + msgpack.packb("k" * 30000) + b"\x81\xa0" * 900 + b"\xd4\x05\x00",
+            b"\x81" + msgpack.packb("k" * 30000) + b"\x81\xa0" * 450 + b"\xd4\x05\x00",
         ),
         "wrong_type",
         id="deep-bare-dict-under-a-30KB-key",
@@ -290,7 +291,7 @@ ACCEPTED = [
         id="map-of-16000-empty-maps",
     ),
     pytest.param(
-        datagram(LimBareDict, b"\x81" + msgpack.packb("k" * 30000) + b"\x81\xa0" * 900 + b"\x00"),
+        datagram(LimBareDict, b"\x81" + msgpack.packb("k" * 30000) + b"\x81\xa0" * 450 + b"\x00"),
         id="deep-bare-dict-under-a-30KB-key",
     ),
     pytest.param(datagram(LimBlob, msgpack.packb(b"x" * 65000)), id="bytes"),
@@ -403,6 +404,19 @@ def test_long_arrays_of_valid_messages_decode_as_sent() -> None:
 
 def test_the_bound_is_the_documented_formula() -> None:
     for size in (MIN_DATAGRAM, 1500, MAX):
-        expected = 1024 * (8 * 256 + 64) + 256 * size + 256 * 1024
+        expected = (8 + 1 + 256) * size + 256 * 1024
         assert Codec(SPECS, FP, size).max_decode_bytes == expected
-    assert CODEC.max_decode_bytes < 20 * 2**20  # the default: about 19 MiB
+    assert CODEC.max_decode_bytes < 18 * 2**20  # the default: about 17 MiB
+
+
+@pytest.mark.parametrize(("depth", "decodes"), [(MAX_NESTING, True), (MAX_NESTING + 1, False)])
+def test_a_field_nests_at_most_what_the_encoder_can_send_again(depth: int, decodes: bool) -> None:
+    data = datagram(LimBareDict, b"\x81\xa0" * depth + b"\x00")
+    assert len(data) > MAX_NESTING  # smaller datagrams cannot nest that deep: not looked at
+    if decodes:
+        msg = CODEC.decode(data)
+        assert CODEC.decode(CODEC.encode(msg)) == msg
+    else:
+        with pytest.raises(DecodeError, match="nest too deeply") as caught:
+            CODEC.decode(data)
+        assert caught.value.reason == "wrong_type"
