@@ -10,6 +10,7 @@ authors in :mod:`cas_async.sim`, application and scenario authors in
 :mod:`cas_async.scenario`. Every module with a leading underscore is internal.
 """
 
+from ._bounds import Bounds, Finite
 from ._clock import Clock, ScaledClock, VirtualClock
 from ._counters import LayerCounters
 from ._errors import (
@@ -58,6 +59,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Address",
     "AuthenticatedTransport",
+    "Bounds",
     "CasError",
     "Clock",
     "ConfigurationError",
@@ -67,6 +69,7 @@ __all__ = [
     "EncodeError",
     "Faults",
     "FaultyTransport",
+    "Finite",
     "Hands",
     "InsecureBindWarning",
     "ItemId",

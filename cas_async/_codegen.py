@@ -44,7 +44,7 @@ from __future__ import annotations
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Annotated, Any, Final
 
 import msgspec
 
@@ -59,6 +59,7 @@ HEADER_LEN: Final = 2 + len(HEADER_FIELDS)
 """Fingerprint and type id, then the header fields."""
 
 _MSG_TYPES: Final = {int(t): t for t in MsgType}
+_ID: Final = Annotated[int, msgspec.Meta(ge=0)]  # message ids (and corr_id: 0, not a reply)
 
 Pack = Callable[[Any], bytes]
 
@@ -104,6 +105,10 @@ def _header_problem(t: Any, fingerprint: int) -> DecodeError | None:
     if not all(type(v) is int for v in header) or t[3] not in _MSG_TYPES:
         values = ", ".join(map(shown, header))
         return DecodeError(f"bad header ({values}): expected six ints", "bad_header")
+    if t[2] < 0 or t[7] < 0:
+        return DecodeError(
+            f"bad header: msg_id {t[2]} and corr_id {t[7]} must be >= 0", "bad_header"
+        )
     return None
 
 
@@ -151,7 +156,7 @@ def _decoder_source(spec: MessageSpec, namespace: dict[str, Any]) -> list[str]:
         f"        raise _wrong_arity(_name, {n}, t, fp) from None",
         "    if not (_fp == fp and type(_fp) is int and type(_tid_) is int and type(mid) is int"
         " and type(mt) is int and type(rid) is int and type(src) is int and type(dst) is int"
-        " and type(corr) is int and mt in _types):",
+        " and type(corr) is int and mt in _types and mid >= 0 and corr >= 0):",
         "        raise _refused(t, fp)",
         "    mt = _types[mt]",
     ]
@@ -254,6 +259,8 @@ def _build_source(spec: MessageSpec) -> list[str]:
 
 def _vouch(value: Any, wire: Any) -> bool:
     """Whether ``value`` has the ``wire`` type (the rarer field types; see _wire_check)."""
+    if typing.get_origin(wire) is Annotated:  # bounds: the receiver checks them
+        return _vouch(value, typing.get_args(wire)[0])
     if typing.get_origin(wire) in (list, tuple):
         return type(value) in (list, tuple)
     options = typing.get_args(wire)
@@ -264,7 +271,8 @@ def _vouch(value: Any, wire: Any) -> bool:
 
 def _fast_decoder(spec: MessageSpec) -> Callable[[bytes], Any]:
     fields = tuple(kind.wire for kind in spec.field_types)
-    row: Any = tuple.__class_getitem__((int, int, int, MsgType, int, int, int, int, *fields))
+    header = (int, int, _ID, MsgType, int, int, int, _ID)
+    row: Any = tuple.__class_getitem__((*header, *fields))
     return msgspec.msgpack.Decoder(row).decode
 
 

@@ -51,6 +51,7 @@ MAX_NESTING: Final = 500
 
 _WALK: Final = msgspec.msgpack.Decoder(msgspec.Raw)
 _MSGSPEC_ERROR: Final = re.compile(r"Expected `(.*?)`, got `(.*?)`(?: - at `(.*)`)?")
+_MSGSPEC_BOUND: Final = re.compile(r"Expected `(\w+)` ([<>]=? \S+)(?: - at `(.*)`)?")
 
 # First bytes of arrays and maps: fixarray, fixmap, array16/32, map16/32.
 _ARRAY_FIRST: Final = frozenset([*range(0x90, 0xA0), 0xDC, 0xDD])
@@ -82,6 +83,10 @@ _EXPLAINED: Final = 4096
 def _refusal(path: str, exc: msgspec.ValidationError) -> DecodeError:
     """The refusal msgspec gave, worded as the converters word theirs (with its path)."""
     text = str(exc)
+    bound = _MSGSPEC_BOUND.fullmatch(text)
+    if bound is not None:
+        kind, limit, at = bound.groups()
+        return DecodeError(f"{path}{(at or '$')[1:]}: expected {kind} {limit}", "out_of_range")
     match = _MSGSPEC_ERROR.fullmatch(text)
     if match is None:
         return DecodeError(f"{path}: {text[:200]}", "wrong_type")

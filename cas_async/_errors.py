@@ -82,6 +82,7 @@ class DecodeError(CasError, ValueError):
         "unknown_type",
         "wrong_arity",
         "wrong_type",
+        "out_of_range",
         "stack_mismatch",
     )
 

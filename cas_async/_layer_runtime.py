@@ -166,7 +166,7 @@ class LayerRuntime:
 
     def violation(self, reason: str, msg: Message) -> None:
         """Counts (and logs) a message this layer sent against a rule of the model."""
-        self.drops.drop(reason, f"{self.name}(L{self.level}) sent {msg!r}")
+        self.drops.drop(reason, "%s(L%s) sent %s", self.name, self.level, msg)
 
     # -- internal messages ---------------------------------------------------------------
 
@@ -297,7 +297,7 @@ class LayerRuntime:
         elif self.overrides.answers and msg.msg_type == _NEGOTIATION and self.answer(msg):
             return True
         if not self.inbox.offer(msg):
-            self.drops.drop("queue_full", f"{self.name}(L{self.level}) inbox full, {msg!r}")
+            self.drops.drop("queue_full", "%s(L%s) inbox full, %s", self.name, self.level, msg)
             return False
         return True
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import inspect
+import reprlib
 import typing
 import zlib
 from collections.abc import Callable, Iterable, Iterator
@@ -59,6 +60,11 @@ HEADER_FIELDS: Final = ("msg_id", "msg_type", "robot_id", "src_layer", "dst_laye
 
 _MAX_TYPE_ID: Final = 2**31 - 1
 
+_SHORT: Final = reprlib.Repr()  # field values in log lines: strings and lists capped
+_SHORT.maxstring = _SHORT.maxother = 60
+_SHORT.maxlist = _SHORT.maxtuple = _SHORT.maxdict = _SHORT.maxset = 6
+_SHORT.maxlevel = 2
+
 
 @dataclasses.dataclass(slots=True, kw_only=True, repr=False)
 class Message:
@@ -81,18 +87,27 @@ class Message:
             cls.__init__ = _undecorated_init  # type: ignore[method-assign]
 
     def __repr__(self) -> str:
-        spec = _by_class.get(type(self))
-        names = spec.field_names if spec is not None else ()
-        body = ", ".join(f"{name}={getattr(self, name)!r}" for name in names)
-        kind = getattr(self.msg_type, "name", self.msg_type)
-        if not self.msg_id:  # not stamped: the header means nothing yet
-            return f"{type(self).__name__}({body}) [not sent, {kind}]"
-        return (
-            f"{type(self).__name__}({body}) "
-            f"[#{self.msg_id} {kind} robot {self.robot_id} "
-            f"L{self.src_layer}->L{self.dst_layer}"
-            + (f" reply to #{self.corr_id}]" if self.corr_id else "]")
-        )
+        return _text(self, repr)
+
+    def __brief__(self) -> str:
+        """The message for a log line: each field capped (see :func:`cas_async._logs.brief`)."""
+        return _text(self, _SHORT.repr)
+
+
+def _text(msg: Message, show: Callable[[Any], str]) -> str:
+    """``Class(field=value, ...) [header]``, each value as ``show`` writes it."""
+    spec = _by_class.get(type(msg))
+    names = spec.field_names if spec is not None else ()
+    body = ", ".join(f"{name}={show(getattr(msg, name))}" for name in names)
+    kind = getattr(msg.msg_type, "name", msg.msg_type)
+    if not msg.msg_id:  # not stamped: the header means nothing yet
+        return f"{type(msg).__name__}({body}) [not sent, {kind}]"
+    return (
+        f"{type(msg).__name__}({body}) "
+        f"[#{msg.msg_id} {kind} robot {msg.robot_id} "
+        f"L{msg.src_layer}->L{msg.dst_layer}"
+        + (f" reply to #{msg.corr_id}]" if msg.corr_id else "]")
+    )
 
 
 def _undecorated_init(self: Message, *args: Any, **kwargs: Any) -> None:
@@ -147,7 +162,7 @@ def _register(cls: type[Message], name: str | None, type_id: int | None) -> Mess
     if type(tid) is not int or not 0 <= tid <= _MAX_TYPE_ID:
         raise MessageDefinitionError(f"{name}: type_id must be an int in [0, {_MAX_TYPE_ID}]")
     try:
-        hints = typing.get_type_hints(cls)
+        hints = typing.get_type_hints(cls, include_extras=True)  # keeps Annotated bounds
     except Exception as exc:
         raise MessageDefinitionError(f"{name}: cannot resolve field annotations: {exc}") from exc
     fields = [f for f in dataclasses.fields(cls) if f.name not in HEADER_FIELDS]

@@ -218,7 +218,7 @@ class Outbox:
         try:
             self._endpoint.send(robot_id, codec.encode(msg))
         except UnknownRobotError as exc:
-            self._drops.drop("unknown_robot", f"{type(msg).__name__}: {exc}")
+            self._drops.drop("unknown_robot", "%s: %s", type(msg).__name__, exc)
             return
         counters = sender.counters
         counters.sent_external += 1
@@ -300,7 +300,7 @@ class Outbox:
         try:
             self._endpoint.send(asker, data)
         except UnknownRobotError as exc:
-            self._drops.drop("reply_undeliverable", str(exc))
+            self._drops.drop("reply_undeliverable", "%s", exc)
 
     def transmit(
         self,
@@ -321,7 +321,7 @@ class Outbox:
         try:
             self._endpoint.send(robot_id, data)
         except UnknownRobotError as exc:
-            self._drops.drop(unknown, f"{kind.__name__}: {exc}")
+            self._drops.drop(unknown, "%s: %s", kind.__name__, exc)
             return False
         counters.sent_external += 1
         by_type = counters.external_by_type

@@ -35,7 +35,7 @@ from ._dedup import FUTURE, STALE, SenderWindows
 from ._errors import DecodeError, StackMismatchError
 from ._fingerprint import describe_fingerprint
 from ._layer_runtime import LayerRuntime
-from ._logs import DropLog, PrefixLogger
+from ._logs import DropLog, PrefixLogger, brief
 from ._message import Message, MsgType
 from ._outbox import Outbox
 from ._types import RobotId
@@ -52,11 +52,19 @@ def _no_horizon() -> int:
     return 0
 
 
-def _describe(data: object) -> str:
+class _Described:
     """A datagram, or a message passed as an object (see :mod:`cas_async._wire_codec`), in a log."""
-    if isinstance(data, bytes | bytearray | memoryview):
-        return f"datagram of {len(data)} bytes"
-    return repr(data)
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data: object) -> None:
+        self._data = data
+
+    def __brief__(self) -> str:
+        data = self._data
+        if isinstance(data, bytes | bytearray | memoryview):
+            return f"datagram of {len(data)} bytes"
+        return brief(data)
 
 
 @final
@@ -123,7 +131,7 @@ class Reception:
         """Decodes, checks and routes one datagram; anything wrong is dropped and counted."""
         now = self._now
         if now is None:
-            self._drops.drop("not_running", f"{_describe(data)} while not running")
+            self._drops.drop("not_running", "%s while not running", _Described(data))
             return
         try:
             msg = self._decode(data)
@@ -131,30 +139,30 @@ class Reception:
             self._refuse_stack(exc)
             return
         except DecodeError as exc:
-            self._drops.drop(f"decode.{exc.reason}", str(exc))
+            self._drops.drop(f"decode.{exc.reason}", "%s", exc)
             return
         level = msg.dst_layer
         claimed = msg.robot_id
         layers = self._layers
         if msg.src_layer != level:
             self._drops.drop(
-                "cross_level", f"external {msg!r}: external messages connect same levels only"
+                "cross_level", "external %s: external messages connect same levels only", msg
             )
         elif not 0 <= level < len(layers):
             self._drops.drop(
-                "no_such_layer", f"external {msg!r}: this robot has {len(layers)} layers"
+                "no_such_layer", "external %s: this robot has %s layers", msg, len(layers)
             )
         elif claimed == self._robot_id:
-            self._drops.drop("from_own_id", f"external {msg!r} claims to come from this robot")
+            self._drops.drop("from_own_id", "external %s claims to come from this robot", msg)
         elif claimed != sender:
             # The transport names every sender it knows (source address, signature):
             # a claim it does not confirm, or a datagram from nobody it knows, is refused.
             if sender is not None or self._outbox.knows(claimed):
                 by = f"robot {sender}" if sender is not None else "an address that is no robot's"
-                self._drops.drop("spoofed_sender", f"external {msg!r} was sent by {by}")
+                self._drops.drop("spoofed_sender", "external %s was sent by %s", msg, by)
             else:
                 self._drops.drop(
-                    "unknown_sender", f"external {msg!r} from a robot this one cannot reach"
+                    "unknown_sender", "external %s from a robot this one cannot reach", msg
                 )
         else:
             seen = self._senders.check(claimed, msg.msg_id, now(), self._horizon)
@@ -166,14 +174,14 @@ class Reception:
 
     def _repeated(self, msg: Message, verdict: int) -> None:
         if verdict == STALE:
-            self._drops.drop("stale", f"{msg!r} is too old to tell whether it was seen")
+            self._drops.drop("stale", "%s is too old to tell whether it was seen", msg)
             return
         if verdict == FUTURE:
-            self._drops.drop("future_id", f"{msg!r}: no robot can have used that id yet (forged?)")
+            self._drops.drop("future_id", "%s: no robot can have used that id yet (forged?)", msg)
             return
         if msg.msg_type == _NEGOTIATION and not msg.corr_id:
             self._outbox.resend_reply(msg.robot_id, msg.msg_id)
-        self._drops.drop("duplicate", f"{msg!r} was delivered before")
+        self._drops.drop("duplicate", "%s was delivered before", msg)
 
     def robot_joined(self, robot_id: RobotId) -> None:
         """The transport can reach robot ``robot_id`` from now on: the layers are told."""
@@ -191,14 +199,14 @@ class Reception:
 
     def transport_dropped(self, reason: str, detail: str) -> None:
         """Counts what the transport lost or refused, as ``transport.<reason>``."""
-        self._drops.drop(f"transport.{reason}", detail)
+        self._drops.drop(f"transport.{reason}", "%s", detail)
 
     def _refuse_stack(self, exc: StackMismatchError) -> None:
         # Explained once per foreign stack, for the first few stacks only: random
         # datagrams carry random fingerprints and must not fill the log or memory.
         seen = self._mismatches_seen
         explain = exc.theirs not in seen and len(seen) < _MISMATCHES_EXPLAINED
-        self._drops.drop("stack_mismatch", str(exc), log=not explain)
+        self._drops.drop("stack_mismatch", "%s", exc, log=not explain)
         if explain:
             seen.add(exc.theirs)
             self._log.error(

@@ -79,12 +79,12 @@ class PendingRequests:
 
     Args:
         owner: how errors name the layer, e.g. ``"robot 3 Top(L0)"``.
-        drop: counts (and logs) a refused reply: ``drop(reason, detail)``.
+        drop: counts (and logs) a refused reply: ``drop(reason, template, *args)``.
     """
 
     __slots__ = ("_answered", "_deadlines", "_drop", "_expired", "_owner", "_waiting")
 
-    def __init__(self, owner: str, drop: Callable[[str, str], None]) -> None:
+    def __init__(self, owner: str, drop: Callable[..., None]) -> None:
         self._owner = owner
         self._drop = drop
         self._waiting: dict[int, _Waiter] = {}
@@ -129,24 +129,23 @@ class PendingRequests:
         waiter = self._waiting.get(corr_id)
         if waiter is None:
             if corr_id in self._expired:
-                self._drop("late_reply", f"{reply!r} arrived after its request timed out")
+                self._drop("late_reply", "%s arrived after its request timed out", reply)
             elif corr_id in self._answered:
-                self._drop("duplicate_reply", f"{reply!r} answers a request already answered")
+                self._drop("duplicate_reply", "%s answers a request already answered", reply)
             else:
                 return ReplyOutcome.NOT_A_REPLY
             return ReplyOutcome.DROPPED
         external = reply.src_layer == reply.dst_layer
         if reply.robot_id != waiter.peer or external != waiter.external:
             self._drop(
-                "reply_from_wrong_place",
-                f"{reply!r} claims to be the reply from {waiter.what}",
+                "reply_from_wrong_place", "%s claims to be the reply from %s", reply, waiter.what
             )
             return ReplyOutcome.DROPPED
         if waiter.future.cancelled():  # the asker stopped waiting (the robot is stopping)
-            self._drop("late_reply", f"{reply!r} arrived after its request was cancelled")
+            self._drop("late_reply", "%s arrived after its request was cancelled", reply)
             return ReplyOutcome.DROPPED
         if waiter.future.done():
-            self._drop("duplicate_reply", f"{reply!r} answers a request already answered")
+            self._drop("duplicate_reply", "%s answers a request already answered", reply)
             return ReplyOutcome.DROPPED
         waiter.future.set_result(reply)
         _remember(self._answered, corr_id)

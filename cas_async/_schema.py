@@ -20,15 +20,20 @@ subclasses, ``numpy.ndarray`` (numeric dtypes) and nested messages.
 from __future__ import annotations
 
 import enum
+import functools
+import operator
 import re
+import sys
 import types
 import typing
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, Final
+from dataclasses import dataclass, replace
+from typing import Annotated, Any, Final
 
+import msgspec
 import numpy as np
 
+from ._bounds import Bounds
 from ._errors import DecodeError, MessageDefinitionError
 
 __all__ = ["FieldType", "NestedMessages", "field_type", "shown"]
@@ -248,7 +253,19 @@ def _mapping(key: FieldType, val: FieldType, name: str) -> Convert:
 
 
 def _union(options: tuple[FieldType, ...], name: str) -> FieldType:
+    plain = [o for o in options if o.text != "None"]
+    optional = plain[0] if len(options) == 2 and len(plain) == 1 else None
+
     def convert(value: Any, path: str) -> Any:
+        if optional is not None and value is not None:
+            try:
+                return optional.convert(value, path)
+            except DecodeError as exc:
+                # ``T | None``: an error inside the value (an element, a bound) is T's
+                # own, more precise; a value of another type is told as the union's.
+                if exc.reason != "wrong_type" or not str(exc).startswith(f"{path}: "):
+                    raise
+                raise _fail(path, name, value) from None
         for option in options:
             try:
                 return option.convert(value, path)
@@ -262,9 +279,8 @@ def _union(options: tuple[FieldType, ...], name: str) -> FieldType:
             "(" + " or ".join(o.fast_check.format(v="{v}") for o in options if o.fast_check) + ")"
         )
     wire: Any = None
-    plain = [o for o in options if o.text != "None"]
-    if len(options) == 2 and len(plain) == 1 and plain[0].wire is not None:
-        wire = plain[0].wire | None  # only ``T | None``: msgspec's other unions differ
+    if optional is not None and optional.wire is not None:
+        wire = optional.wire | None  # only ``T | None``: msgspec's other unions differ
     scalar = all(option.scalar for option in options)
     return FieldType(name, convert, fast, wire=wire, scalar=scalar)
 
@@ -353,10 +369,44 @@ def _nested_message(kind: type, nested: NestedMessages) -> FieldType:
     return FieldType(kind.__name__, convert)
 
 
+def _bounded(kind: FieldType, bounds: Bounds, where: str) -> FieldType:
+    """``kind`` (an ``int`` or ``float``) whose values must also be within ``bounds``."""
+    if kind.text not in ("int", "float"):
+        raise MessageDefinitionError(
+            f"{where}: Bounds apply to int and float fields, not to {kind.text}"
+        )
+    if bounds.finite and kind.text == "int":
+        bounds = replace(bounds, finite=False)  # every int is finite
+    inner, text = kind.convert, f"{kind.text}({bounds.text})"
+
+    def convert(value: Any, path: str) -> Any:
+        number = inner(value, path)
+        if bounds.admits(number):
+            return number
+        raise DecodeError(f"{path}: expected {text}, got {shown(number)}", "out_of_range")
+
+    # msgspec checks the same bounds in C (finite: within the largest floats; any
+    # bound refuses NaN there too).
+    most = sys.float_info.max if bounds.finite else None
+    limits: dict[str, Any] = {
+        "ge": bounds.ge if bounds.ge is not None else (None if most is None else -most),
+        "gt": bounds.gt,
+        "le": bounds.le if bounds.le is not None else most,
+        "lt": bounds.lt,
+    }
+    meta = msgspec.Meta(**{name: value for name, value in limits.items() if value is not None})
+    return FieldType(text, convert, wire=Annotated[kind.wire, meta], scalar=True)
+
+
 def field_type(annotation: Any, where: str, nested: NestedMessages) -> FieldType:
     """Builds the :class:`FieldType` of an annotation, or explains why it is unsupported."""
     if annotation in _SIMPLE:
         return _SIMPLE[annotation]
+    if typing.get_origin(annotation) is Annotated:
+        base, *extras = typing.get_args(annotation)
+        kind = field_type(base, where, nested)
+        found = [extra for extra in extras if isinstance(extra, Bounds)]
+        return kind if not found else _bounded(kind, functools.reduce(operator.and_, found), where)
     if annotation is list:
         return FieldType("list", _sequence(FieldType("plain", _plain_convert), list, "list"))
     if annotation is tuple:

@@ -22,7 +22,7 @@ from cas_async._message import specs_for
 from cas_async.transport import Codec
 from cas_async.transport import stack_fingerprint as fingerprint_of
 
-from .test_codec_properties import PropAll, PropInner, PropSmall, ints64, same, wire_values
+from .test_codec_properties import PropAll, PropInner, PropSmall, ids64, ints64, same, wire_values
 
 
 class FastMode(IntEnum):
@@ -76,7 +76,7 @@ CODEC = Codec(SPECS, fingerprint_of(3, SPECS))
 
 floats = st.floats(allow_nan=False)
 modes = st.sampled_from(FastMode)
-headers: dict[str, Any] = {"msg_id": ints64, "robot_id": ints64, "corr_id": ints64}
+headers: dict[str, Any] = {"msg_id": ids64, "robot_id": ints64, "corr_id": ids64}
 fast_all = st.builds(
     FastAll,
     i=ints64,

@@ -122,6 +122,7 @@ TYPE_IDS = [spec.type_id for spec in SPECS.values()]
 # --- strategies of valid messages ----------------------------------------------------------
 
 ints64 = st.integers(-(2**63), 2**64 - 1)
+ids64 = st.integers(0, 2**64 - 1)  # message ids and corr_id: never negative on the wire
 floats = st.floats(allow_nan=True, allow_infinity=True)
 small_text = st.text(max_size=12)
 small_bytes = st.binary(max_size=12)
@@ -156,12 +157,12 @@ arrays = hnp.arrays(
 )
 inners = st.builds(PropInner, label=small_text, weight=floats)
 headers: dict[str, st.SearchStrategy[Any]] = {
-    "msg_id": ints64,
+    "msg_id": ids64,
     "msg_type": st.sampled_from(MsgType),
     "robot_id": ints64,
     "src_layer": ints64,
     "dst_layer": ints64,
-    "corr_id": ints64,
+    "corr_id": ids64,
 }
 
 prop_all = st.builds(

@@ -9,20 +9,17 @@ from cas_async import Layer, Pose, Robot
 from cas_async.scenario import Mission, ScenarioError, SimulationSetup
 from cas_async.sim import SimulatedHands, SimulatedMiddleware
 
-from . import messages
 from .action import Action
 from .base import Params, Peers, Point
 from .config import FireBrigadeConfig
 from .goal import Goal
 from .group_activity import GroupActivity
-from .messages import Kind
+from .messages import MESSAGES, Kind
 from .strategies import strategy_class
 from .task import Task
 
 __all__ = ["MESSAGES", "FireBrigade"]
 
-MESSAGES: Final = tuple(getattr(messages, name) for name in messages.__all__ if name != "Kind")
-"""The app's message classes: they make up the stack fingerprint."""
 
 _REACH: Final = 1e-6
 """How close two robots must be for a hand-over (they meet at the same point)."""

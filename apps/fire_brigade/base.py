@@ -178,6 +178,18 @@ class BrigadeLayer(Layer):
         """This robot's kind."""
         return self.params.kind
 
+    def in_world(self, *points: Point) -> bool:
+        """Whether every point is inside the world (up to rounding).
+
+        What another robot says is checked before it is acted upon: a message's
+        bounds make its numbers finite, this makes its positions possible.
+        """
+        width, height = self.params.world
+        slack = 1e-6
+        return all(
+            -slack <= x <= width + slack and -slack <= y <= height + slack for x, y in points
+        )
+
     def unexpected(self, msg: Message, why: str) -> None:
         """Logs a message this layer's state machine has no use for (never raised)."""
         self.log.warning("ignored %r: %s", msg, why)

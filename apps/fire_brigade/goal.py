@@ -182,6 +182,9 @@ class Goal(BrigadeLayer):
         if not self.asking:
             self.late(msg, "no RequestInfo round is under way")
             return
+        if not self.in_world((msg.x, msg.y)):
+            self.unexpected(msg, "a position outside the world")
+            return
         self.answers[msg.robot_id] = msg
         if self.params.sink_search == "nearby":
             waiting = self.waiting

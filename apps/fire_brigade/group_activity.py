@@ -100,7 +100,11 @@ class GroupActivity(BrigadeLayer):
             answer = None
         if self.partnerships.get(partnership.partner) is not partnership:
             return  # cannot happen: a giver has one partnership at a time
-        if answer is None or answer.msg_type != MsgType.ACCEPT:
+        if (
+            answer is None
+            or answer.msg_type != MsgType.ACCEPT
+            or not self.in_world((answer.x, answer.y))
+        ):
             self.log.info("robot %d did not agree to meet", partnership.partner)
             del self.partnerships[partnership.partner]
             self._abandoned(partnership)
@@ -118,6 +122,10 @@ class GroupActivity(BrigadeLayer):
         if partnership is None or partnership.has_bucket:
             self.reply(msg, Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY))
             self.late(msg, "not (or no longer) this robot's partner")
+            return
+        if not self.in_world((msg.x, msg.y)):
+            self.reply(msg, Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY))
+            self.unexpected(msg, "a position outside the world")
             return
         self.cancel_wake(("meet", msg.robot_id))
         where = await self._where()

@@ -26,12 +26,16 @@ replies. Which layer uses which message:
 from __future__ import annotations
 
 import enum
+from typing import Annotated, TypeAlias
 
-from cas_async import Message, message
+from cas_async import Bounds, Finite, Message, message
 
 __all__ = [
+    "MESSAGES",
     "ChangeStatus",
     "CompletionStatus",
+    "Coordinate",
+    "Distance",
     "Handover",
     "Kind",
     "Meet",
@@ -39,7 +43,18 @@ __all__ = [
     "RequestInfo",
     "RequestPartner",
     "RequestRobotsInRange",
+    "Speed",
 ]
+
+
+Coordinate: TypeAlias = Annotated[float, Finite]
+"""A position's x or y: finite, checked when a message arrives (NaN never reaches a layer)."""
+
+Speed: TypeAlias = Annotated[float, Finite, Bounds(ge=0)]
+"""A speed: finite and not negative."""
+
+Distance: TypeAlias = Annotated[float, Finite, Bounds(ge=0)]
+"""A radius: finite and not negative."""
 
 
 class Kind(enum.IntEnum):
@@ -54,10 +69,10 @@ class Kind(enum.IntEnum):
 class RequestInfo(Message):
     """Position and kind of a robot (and its current speed, 0 when immobile)."""
 
-    x: float = 0.0
-    y: float = 0.0
+    x: Coordinate = 0.0
+    y: Coordinate = 0.0
     kind: Kind = Kind.TRANSPORTER
-    speed: float = 0.0
+    speed: Speed = 0.0
 
 
 @message
@@ -71,13 +86,13 @@ class ChangeStatus(Message):
 
     status: str
     partner: int = -1
-    x: float = 0.0
-    y: float = 0.0
+    x: Coordinate = 0.0
+    y: Coordinate = 0.0
     has_bucket: bool = False
     bucket: int = -1
     sink: int = -1
-    sink_x: float = 0.0
-    sink_y: float = 0.0
+    sink_x: Coordinate = 0.0
+    sink_y: Coordinate = 0.0
     deal: int = -1
 
 
@@ -89,13 +104,13 @@ class RequestRobotsInRange(Message):
     the Strategy needs to estimate meeting times.
     """
 
-    radius: float
+    radius: Distance
     ids: list[int] | None = None
-    xs: list[float] | None = None
-    ys: list[float] | None = None
-    x: float = 0.0
-    y: float = 0.0
-    speed: float = 0.0
+    xs: list[Coordinate] | None = None
+    ys: list[Coordinate] | None = None
+    x: Coordinate = 0.0
+    y: Coordinate = 0.0
+    speed: Speed = 0.0
 
 
 @message
@@ -109,13 +124,13 @@ class RequestPartner(Message):
     the same two robots is never taken for one of this partnership.
     """
 
-    x: float
-    y: float
+    x: Coordinate
+    y: Coordinate
     kind: Kind
     bucket: int = -1
     sink: int = -1
-    sink_x: float = 0.0
-    sink_y: float = 0.0
+    sink_x: Coordinate = 0.0
+    sink_y: Coordinate = 0.0
 
 
 @message
@@ -127,10 +142,10 @@ class Meet(Message):
     or DENY when it is not partnered with the giver.
     """
 
-    x: float
-    y: float
+    x: Coordinate
+    y: Coordinate
     kind: Kind = Kind.TRANSPORTER
-    speed: float = 0.0
+    speed: Speed = 0.0
     deal: int = -1
 
 
@@ -154,8 +169,21 @@ class CompletionStatus(Message):
     """The Action layer's report: what finished, and the robot's pose and bucket now."""
 
     action: str
-    x: float = 0.0
-    y: float = 0.0
-    heading: float = 0.0
+    x: Coordinate = 0.0
+    y: Coordinate = 0.0
+    heading: Coordinate = 0.0
     has_bucket: bool = False
     bucket: int = -1
+
+
+MESSAGES: tuple[type[Message], ...] = (
+    RequestInfo,
+    ChangeStatus,
+    RequestRobotsInRange,
+    RequestPartner,
+    Meet,
+    Meeting,
+    Handover,
+    CompletionStatus,
+)
+"""Every message of the Fire Brigade's stack: they make up its fingerprint."""

@@ -277,6 +277,8 @@ class Strategy(BrigadeLayer):
         """Answers partnership requests; takes the answers to this robot's own."""
         if not isinstance(msg, RequestPartner):
             self.unexpected(msg, "the Strategy layer only exchanges RequestPartner")
+        elif not self.in_world((msg.x, msg.y), (msg.sink_x, msg.sink_y)):
+            self.unexpected(msg, "a position outside the world")
         elif msg.msg_type == MsgType.NEGOTIATION:
             self._answer(msg)
         elif msg.robot_id != self.asked or msg.corr_id != self.asked_in:

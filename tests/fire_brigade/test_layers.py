@@ -591,7 +591,7 @@ def test_every_message_reaches_a_layer_that_expects_it(caplog: pytest.LogCapture
 @pytest.mark.parametrize(
     "changes",
     [
-        pytest.param({"handover_time": 6.0}, id="long-handover"),
+        pytest.param({"handover_time": 6.0, "world": (40.0, 40.0)}, id="long-handover"),
         pytest.param({"search_step": 30.0, "world": (40.0, 40.0)}, id="long-carry-leg"),
     ],
 )
