@@ -39,6 +39,7 @@ __all__ = [
     "message",
     "nested_to_wire",
     "registered",
+    "registry_generation",
     "spec_of",
     "specs_for",
 ]
@@ -144,6 +145,7 @@ class MessageSpec:
 _by_id: dict[int, MessageSpec] = {}
 _by_class: dict[type[Message], MessageSpec] = {}
 _by_name: dict[str, MessageSpec] = {}
+_generation = 0  # counts the changes to the registry
 
 
 def _type_id_for(name: str) -> int:
@@ -178,6 +180,8 @@ def _register(cls: type[Message], name: str | None, type_id: int | None) -> Mess
             )
     for existing in found:
         _unregister(existing)
+    global _generation
+    _generation += 1
     _by_id[tid] = _by_class[cls] = _by_name[name] = spec
     return spec
 
@@ -242,6 +246,11 @@ def spec_of(cls: type[Message]) -> MessageSpec:
 def registered() -> Iterator[MessageSpec]:
     """Every registered message spec, in type-id order."""
     return iter(sorted(_by_id.values(), key=lambda s: s.type_id))
+
+
+def registry_generation() -> int:
+    """A number that changes whenever a message class is registered (or replaced)."""
+    return _generation
 
 
 def specs_for(classes: Iterable[type[Message]] | None) -> dict[int, MessageSpec]:

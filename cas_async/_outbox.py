@@ -161,6 +161,10 @@ class Outbox:
         """Closes the endpoint; sending then raises ``RobotStateError`` (idempotent)."""
         self._endpoint.close()
 
+    def follow_membership(self, follow: bool) -> None:
+        """Whether the robot hears of others joining and leaving (while its layers run)."""
+        self._endpoint.follow_membership(follow)
+
     @property
     def codec(self) -> WireCodec:
         """The wire codec (a stand-in that raises before the robot starts)."""

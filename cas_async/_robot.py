@@ -32,7 +32,6 @@ from ._codec import DEFAULT_MAX_DATAGRAM, MIN_DATAGRAM, Codec
 from ._counters import LayerCounters
 from ._dedup import ID_SLACK, ReplyCache
 from ._errors import ConfigurationError, RobotStateError
-from ._fingerprint import stack_fingerprint
 from ._hooks import Overrides
 from ._layer import Layer, attach, overrides
 from ._layer_runtime import LayerRuntime
@@ -272,18 +271,19 @@ class Robot:
                 "do not run on virtual time; use MemoryTransport with VirtualClock, "
                 "or ScaledClock with this transport"
             )
-        specs = specs_for(self._messages)  # refuses an unregistered class before any socket
-        fingerprint = stack_fingerprint(len(self._runtimes), specs)
+        specs_for(self._messages)  # refuses an unregistered class before any socket
+        layers = len(self._runtimes)
         first_id = self.clock.message_id_base(self.robot_id)
         kept = ReplyCache(keep_for=self.clock.loop_seconds(self.reply_memory))
         if transport is None:
-            codec = Codec(specs, fingerprint, self._max_datagram_size)
+            codec = Codec.shared(layers, self._messages, self._max_datagram_size)
             self._outbox.connect(codec, None, first_id, now=loop.time, replies=kept)
         else:
             endpoint = await transport.open(self.robot_id, self._reception)
             try:
                 limit = min(self._max_datagram_size, endpoint.max_datagram_size)
-                wire = transport.wire_codec(self.robot_id, Codec(specs, fingerprint, limit))
+                codec = Codec.shared(layers, self._messages, limit)
+                wire = transport.wire_codec(self.robot_id, codec)
             except BaseException:
                 endpoint.close()  # the socket must not outlive a robot that never started
                 self._state = RobotState.STOPPED
@@ -308,6 +308,7 @@ class Robot:
         self._reception.open(loop.time, lambda: clock.id_time() + ID_SLACK)
         for runtime in self._runtimes:
             runtime.start()
+        self._outbox.follow_membership(True)
         self._supervisor = loop.create_task(
             self._supervise(), name=f"cas_async robot {self.robot_id}"
         )
@@ -329,6 +330,8 @@ class Robot:
             supervisor.cancel()
             await asyncio.wait([supervisor])
             raise
+        finally:
+            self._outbox.follow_membership(False)  # nothing runs that could use the news
 
     def close(self) -> None:
         """Closes the endpoint and fails what still waits on the robot (to STOPPED); idempotent.

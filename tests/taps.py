@@ -9,7 +9,8 @@ from cas_async.transport import Codec, DatagramSink, Endpoint, WireCodec
 class Tap(Transport):
     """A :class:`MemoryTransport` whose receiving side a test can watch and feed.
 
-    ``received[robot_id]`` keeps every datagram that robot was given (in order);
+    ``received[robot_id]`` keeps every datagram that robot was given (in order),
+    ``news[robot_id]`` every ``("joined" | "left", other)`` it was told;
     :meth:`deliver` hands a robot a datagram as if it had come off the wire.
     """
 
@@ -18,10 +19,12 @@ class Tap(Transport):
     def __init__(self, inner: Transport | None = None) -> None:
         self.inner = inner if inner is not None else MemoryTransport()
         self.received: dict[RobotId, list[bytes]] = {}
+        self.news: dict[RobotId, list[tuple[str, RobotId]]] = {}
         self._sinks: dict[RobotId, DatagramSink] = {}
 
     async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
         kept = self.received.setdefault(robot_id, [])
+        told = self.news.setdefault(robot_id, [])
         self._sinks[robot_id] = sink
 
         class Recording:
@@ -33,9 +36,11 @@ class Tap(Transport):
                 sink.transport_dropped(reason, detail)
 
             def robot_joined(self, robot_id: RobotId) -> None:
+                told.append(("joined", robot_id))
                 sink.robot_joined(robot_id)
 
             def robot_left(self, robot_id: RobotId) -> None:
+                told.append(("left", robot_id))
                 sink.robot_left(robot_id)
 
         return await self.inner.open(robot_id, Recording())

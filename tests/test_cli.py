@@ -257,6 +257,22 @@ def _missing(tmp_path: Path) -> Path:
         pytest.param(_shipped, ["--time-factor", "0"], "run.time_factor", id="time-factor-0"),
         pytest.param(_shipped, ["--seed", "-1"], "run.seed", id="negative-seed"),
         pytest.param(_shipped, ["--set", "mission.buckets"], "--set", id="set-without-value"),
+        # Absurd sizes fail before anything is built (they used to build until memory ran out).
+        pytest.param(
+            _shipped, ["--set", "transporters.count=1000000000000"], "transporters.count", id="1e12"
+        ),
+        pytest.param(
+            _shipped,
+            ["--virtual", "--set", "transporters.count=99999999999999999999999"],
+            "transporters.count",
+            id="1e23-in-memory",
+        ),
+        pytest.param(
+            _shipped, ["--set", "stations.repeat=1000000000000000000"], "stations.repeat", id="1e18"
+        ),
+        pytest.param(
+            _shipped, ["--set", "run.trace_interval=1e-300"], "run.trace_interval", id="trace-1e300"
+        ),
         pytest.param(_missing, [], "no such file", id="missing-file"),
         pytest.param(_not_toml, [], "not valid TOML", id="not-toml"),
     ],

@@ -964,3 +964,34 @@ def test_schema_text_describes_the_wire_layout() -> None:
     assert spec_of(CodecEnum).schema.endswith(":CodecEnum(v:CodecColor[1, 2, 7])")
     assert spec_of(CodecLine).schema.endswith(":CodecLine(start:CodecPoint,end:CodecPoint)")
     assert spec_of(CodecOptInt).schema.endswith(":CodecOptInt(v:int | None)")
+
+
+def test_robots_of_one_stack_in_one_thread_share_one_codec() -> None:
+    import threading
+
+    @message
+    class SharedA(Message):
+        x: int
+
+    stack = (SharedA,)
+    first = Codec.shared(2, stack, 1400)
+    assert Codec.shared(2, stack, 1400) is first
+    assert Codec.shared(3, stack, 1400) is not first  # another layer count
+    assert Codec.shared(2, stack, 9000) is not first  # another datagram limit
+    assert Codec.shared(2, stack, 1400).fingerprint == Codec.for_stack(2, stack, 1400).fingerprint
+    everything = Codec.shared(2, None)
+    assert Codec.shared(2, None) is everything
+
+    @message
+    class SharedB(Message):
+        y: int
+
+    # Registering a message changes the set of "every registered message".
+    assert SharedB in Codec.shared(2, None).message_classes
+    assert SharedB not in everything.message_classes
+    elsewhere: list[Codec] = []
+    thread = threading.Thread(target=lambda: elsewhere.append(Codec.shared(2, stack, 1400)))
+    thread.start()
+    thread.join(10)
+    assert elsewhere
+    assert elsewhere[0] is not first

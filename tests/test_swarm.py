@@ -20,6 +20,7 @@ from cas_async import (
 )
 from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Note, Recorder
+from tests.taps import Tap
 
 
 class GreetAtStart(Recorder):
@@ -143,3 +144,25 @@ async def test_swarm_exit_under_cancellation_still_stops_every_robot() -> None:
         await task
     assert [robot.state for robot in swarm] == [RobotState.STOPPED] * 3
     assert not transport._endpoints
+
+
+class _Idle(Layer):
+    def termination_condition(self) -> bool:
+        return False
+
+
+@pytest.mark.parametrize("inner", [MemoryTransport, UdpTransport])
+async def test_robots_hear_of_each_other_only_while_they_run(inner) -> None:
+    # Opening n robots used to tell each opened one of every later one (and closing
+    # likewise): n squared calls, 47 s to open 11,600 robots. News goes to running robots.
+    tap = Tap(inner())
+    swarm = Swarm(Robot(i, [_Idle()], transport=tap, messages=STACK_MESSAGES) for i in range(30))
+    async with swarm:
+        assert all(not news for news in tap.news.values())  # opened, then started: no news
+        await swarm.add(Robot(30, [_Idle()], transport=tap, messages=STACK_MESSAGES))
+        await swarm.remove(0)
+        for robot_id in range(1, 30):
+            assert tap.news[robot_id] == [("joined", 30), ("left", 0)]
+        assert tap.news[30] == [("left", 0)]
+        before = {robot_id: len(news) for robot_id, news in tap.news.items()}
+    assert {robot_id: len(news) for robot_id, news in tap.news.items()} == before  # closing

@@ -36,6 +36,15 @@ class FireBrigade:
     item_name = "bucket"
     config_type = FireBrigadeConfig
 
+    def robots(self, config: FireBrigadeConfig) -> dict[str, int]:
+        """Stations (every copy of the layout) and Transporters, counted without placing any."""
+        stations = config.stations
+        per_copy = len(stations.generators) + len(stations.sinks)
+        return {
+            "stations.repeat" if stations.repeat > 1 else "stations": per_copy * stations.repeat,
+            "transporters.count": config.transporters.count,
+        }
+
     def check(self, config: FireBrigadeConfig, world: tuple[float, float]) -> None:
         """Robots inside the world, a sensible spawn area and speeds, a known strategy.
 

@@ -13,7 +13,7 @@ is complete when ``Mission.target`` items have been retired (delivered).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Generic, Protocol, TypeVar
 
@@ -87,6 +87,15 @@ class SimulationApp(Protocol[C]):
     name: str
     item_name: str
     config_type: type[C]
+
+    def robots(self, config: C) -> Mapping[str, int]:
+        """How many robots ``config`` builds, by the key that sets each number.
+
+        Computed without building anything: the loader checks the total against
+        the machine's memory (and sockets, on UDP) before :meth:`check` and
+        :meth:`build` run, and names the key with the most robots when it is too
+        many. ``{"transporters.count": 16, "stations": 4}``, say.
+        """
 
     def check(self, config: C, world: tuple[float, float]) -> None:
         """Checks what needs several keys at once (robots inside the world, …).

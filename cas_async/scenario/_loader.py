@@ -26,8 +26,9 @@ then a few lines each.
 
 :func:`load_scenario` reads it, applies ``--set key=value`` overrides, imports
 the application, validates ``[run]``, ``[world]``, ``[faults]`` and the application's keys
-(into ``app.config_type``, see :mod:`~cas_async.scenario._config`), then lets
-the application check what needs several keys at once. Every problem found is
+(into ``app.config_type``, see :mod:`~cas_async.scenario._config`), checks that
+the machine can hold the robots they make (see :mod:`~cas_async.scenario._capacity`),
+then lets the application check what needs several keys at once. Every problem found is
 reported in one :class:`~cas_async.scenario._config.ScenarioError` naming the file.
 """
 
@@ -49,6 +50,7 @@ from typing import Any, Final, Literal, cast
 from .._supervision import RestartPolicy
 from ..transport._faulty import Faults
 from ._app import SimulationApp
+from ._capacity import Capacity, capacity_problems
 from ._config import ScenarioError, from_toml, setting, show
 
 __all__ = [
@@ -63,7 +65,7 @@ __all__ = [
 
 _RESERVED: Final = frozenset({"app", "faults", "run", "world"})
 _MISSING: Final = object()
-_APP_MEMBERS: Final = ("name", "item_name", "config_type", "check", "build")
+_APP_MEMBERS: Final = ("name", "item_name", "config_type", "robots", "check", "build")
 _IMPORT_PATH: Final = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?")
 _APP_EXPECTED: Final = 'an import path such as "package.module" or "package.module:attr"'
 
@@ -371,6 +373,15 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
         )
     if problems or app is None or run is None or world is None or faults is None:
         raise ScenarioError(problems)
+    # Sizes before anything that takes time or memory in proportion to them.
+    too_many = capacity_problems(
+        app.robots(config),
+        run.transport,
+        Capacity.of_this_machine(),
+        samples=run.max_time / run.trace_interval,
+    )
+    if too_many:
+        raise ScenarioError(too_many)
     app.check(config, (world.width, world.height))
     return Scenario(path, app_path, app, run, world, config, data, faults)
 

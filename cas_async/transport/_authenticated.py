@@ -226,6 +226,9 @@ class _AuthenticatedEndpoint(Endpoint):
     def knows(self, robot_id: RobotId) -> bool:
         return self._inner.knows(robot_id)
 
+    def follow_membership(self, follow: bool) -> None:
+        self._inner.follow_membership(follow)
+
     def close(self) -> None:
         self._inner.close()
 

@@ -99,6 +99,16 @@ class Endpoint(ABC):
     def close(self) -> None:
         """Stops sending and receiving; idempotent."""
 
+    def follow_membership(self, follow: bool) -> None:
+        """Whether the sink hears of robots joining and leaving (``robot_joined``/``left``).
+
+        Off when opened: a robot turns it on while its layers run, and off when
+        they stop, so news that nothing running could use is not sent (a swarm
+        of n robots opens and closes in n steps, not n squared). Transports that
+        report no membership ignore it.
+        """
+        return  # default: no membership news to give
+
 
 class Transport(ABC):
     """Creates endpoints; one instance is shared by the robots it connects."""

@@ -240,6 +240,9 @@ class FaultyEndpoint(Endpoint):
     def knows(self, robot_id: RobotId) -> bool:
         return self._inner.knows(robot_id)
 
+    def follow_membership(self, follow: bool) -> None:
+        self._inner.follow_membership(follow)
+
     def close(self) -> None:
         """Drops the copies still delayed or held back (``lost_at_close``), closes the inner one."""
         if self._closed:

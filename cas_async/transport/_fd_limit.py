@@ -23,7 +23,7 @@ if sys.platform == "win32":  # pragma: no cover - no rlimits there (nor this lim
 else:
     import resource as _resource
 
-__all__ = ["ensure_descriptors"]
+__all__ = ["descriptor_room", "ensure_descriptors"]
 
 _UNLIMITED: Final = sys.maxsize
 """Returned when the process has no descriptor limit this module can see."""
@@ -80,6 +80,21 @@ def ensure_descriptors(needed: int) -> int:
         if target <= soft and (2 * target <= soft or soft == hard):
             return soft
         return _raise_soft(target, soft, hard)
+
+
+def descriptor_room() -> tuple[int, int]:
+    """``(room, hard)``: descriptors this process can still open, and its hard limit.
+
+    Room is the hard limit (to which :func:`ensure_descriptors` raises the soft
+    one) less the descriptors open now; both are ``sys.maxsize`` when unlimited
+    or unknown.
+    """
+    if _resource is None:
+        return _UNLIMITED, _UNLIMITED
+    soft, hard = _resource.getrlimit(_resource.RLIMIT_NOFILE)
+    if hard == _resource.RLIM_INFINITY:
+        return _UNLIMITED, _UNLIMITED
+    return max(0, hard - _open_descriptors(soft)), hard
 
 
 def _raise_soft(target: int, soft: int, hard: int) -> int:

@@ -102,11 +102,19 @@ class MemoryEndpoint(Endpoint):
     def close(self) -> None:
         if not self._closed:
             self._closed = True
-            endpoints = self._network._endpoints
-            if endpoints.get(self.robot_id) is self:
-                del endpoints[self.robot_id]
-                for other in endpoints.values():
+            self.follow_membership(False)
+            network = self._network
+            if network._endpoints.get(self.robot_id) is self:
+                del network._endpoints[self.robot_id]
+                for other in list(network._followers.values()):
                     other.told_left(self.robot_id)
+
+    def follow_membership(self, follow: bool) -> None:
+        followers = self._network._followers
+        if follow and not self._closed:
+            followers[self.robot_id] = self
+        elif followers.get(self.robot_id) is self:
+            del followers[self.robot_id]
 
     def told_joined(self, robot_id: RobotId) -> None:
         """Tells this robot that ``robot_id`` is on the transport from now on."""
@@ -138,6 +146,7 @@ class MemoryTransport(Transport):
         self.pass_objects = pass_objects
         self._pass_through: PassThrough | None = None  # made for the first robot, shared
         self._endpoints: dict[RobotId, MemoryEndpoint] = {}
+        self._followers: dict[RobotId, MemoryEndpoint] = {}  # told of joins and leaves
 
     async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
         """Attaches a robot; raises ``ConfigurationError`` when its id is taken."""
@@ -145,7 +154,7 @@ class MemoryTransport(Transport):
             raise ConfigurationError(
                 f"robot {robot_id} is already attached to this MemoryTransport"
             )
-        for other in self._endpoints.values():
+        for other in list(self._followers.values()):
             other.told_joined(robot_id)
         endpoint = self._endpoints[robot_id] = MemoryEndpoint(self, robot_id, sink)
         return endpoint

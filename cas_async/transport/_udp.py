@@ -69,7 +69,8 @@ class UdpDirectory:
         # Port -> robot, for robots entered at a wildcard address (0.0.0.0, ::): their
         # datagrams come from whatever interface address the kernel picks.
         self._wildcards: dict[int, RobotId] = {}
-        self._watchers: list[DatagramSink] = []  # told when a robot is entered or removed
+        # Told when a robot is entered or removed (a dict as an ordered set).
+        self._watchers: dict[DatagramSink, None] = {}
         for robot_id, (host, port) in (addresses or {}).items():
             self.add(robot_id, host, port)
 
@@ -121,12 +122,11 @@ class UdpDirectory:
 
     def watch(self, sink: DatagramSink) -> None:
         """Tells ``sink`` of every robot entered (``robot_joined``) or removed (``robot_left``)."""
-        self._watchers.append(sink)
+        self._watchers[sink] = None
 
     def unwatch(self, sink: DatagramSink) -> None:
         """Stops telling ``sink``; no error when it was not watching."""
-        if sink in self._watchers:
-            self._watchers.remove(sink)
+        self._watchers.pop(sink, None)
 
     def sender(self, source: Any) -> RobotId | None:
         """The robot that sends from ``source`` (a datagram's source address), or ``None``.
@@ -278,6 +278,12 @@ class UdpEndpoint(Endpoint):
     def knows(self, robot_id: RobotId) -> bool:
         return robot_id in self._addresses
 
+    def follow_membership(self, follow: bool) -> None:
+        if follow and not self._closed:
+            self._directory.watch(self._sink)
+        else:
+            self._directory.unwatch(self._sink)
+
     def close(self) -> None:
         """Closes the socket and undoes this endpoint's directory entry, if it made one.
 
@@ -359,7 +365,6 @@ class UdpTransport(Transport):
         if configured is None or configured[1] == 0:
             registered = (host, port)
             self.directory.add(robot_id, host, port)
-        self.directory.watch(sink)
         endpoint = self._open[robot_id] = UdpEndpoint(
             robot_id,
             transport,

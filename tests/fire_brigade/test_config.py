@@ -426,3 +426,23 @@ def test_the_messages_are_the_apps_own() -> None:
         "RequestPartner",
         "RequestRobotsInRange",
     }
+
+
+@pytest.mark.parametrize(
+    ("overrides", "expected"),
+    [
+        pytest.param([], {"stations": 4, "transporters.count": 16}, id="thesis"),
+        pytest.param(
+            ["stations.repeat=3", "stations.repeat_offset=[0.5, 0.0]", "transporters.count=5"],
+            {"stations.repeat": 12, "transporters.count": 5},
+            id="repeated",
+        ),
+    ],
+)
+def test_robots_counts_what_build_makes_without_building(
+    overrides: list[str], expected: dict[str, int]
+) -> None:
+    config = load_scenario(BASE, overrides).config
+    assert FireBrigade().robots(config) == expected
+    mission, _ = build(config)
+    assert len(mission.robots) == sum(expected.values())

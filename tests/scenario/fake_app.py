@@ -25,6 +25,9 @@ class FakeApp:
     item_name = "token"
     config_type = FakeConfig
 
+    def robots(self, config: FakeConfig) -> dict[str, int]:
+        return {"robots.count": config.robots.count}
+
     def check(self, config: FakeConfig, world: tuple[float, float]) -> None:
         if config.robots.count > 100:
             raise ScenarioError(
@@ -45,6 +48,9 @@ class _Untyped:
     name = "Untyped"
     item_name = "thing"
     config_type: Any = dict  # not a dataclass
+
+    def robots(self, config: Any) -> dict[str, int]:
+        return {}
 
     def check(self, config: Any, world: tuple[float, float]) -> None:
         pass

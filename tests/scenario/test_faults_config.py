@@ -222,6 +222,9 @@ class PingApp:
     item_name = "ping"
     config_type = PingConfig
 
+    def robots(self, config: PingConfig) -> dict[str, int]:
+        return {"robots": 2}
+
     def check(self, config: PingConfig, world: tuple[float, float]) -> None:
         pass
 

@@ -261,7 +261,7 @@ def test_run_and_world_are_checked_even_when_the_app_is_not_found(write: WriteSc
         pytest.param(
             'app = "tests.scenario.fake_app:not_an_app"',
             '"tests.scenario.fake_app:not_an_app" is not a simulation app: '
-            "it has no name, item_name, config_type, check, build",
+            "it has no name, item_name, config_type, robots, check, build",
             id="not-an-app",
         ),
         pytest.param(
