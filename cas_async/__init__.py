@@ -10,6 +10,12 @@ authors in :mod:`cas_async.sim`, application and scenario authors in
 :mod:`cas_async.scenario`. Every module with a leading underscore is internal.
 """
 
+# ruff: noqa: E402 - the imports below come after the signals are handled
+# First, before the imports that take time: `python -m cas_async` exits 130 on a signal.
+from . import _interrupts
+
+_interrupts.exit_on_signal_while_importing()
+
 from ._bounds import Bounds, Finite
 from ._clock import Clock, ScaledClock, VirtualClock
 from ._counters import LayerCounters

@@ -3,8 +3,14 @@
 ``run SCENARIO.toml`` loads and validates the scenario (exit code 2 when it is
 wrong, before anything starts), runs it with a live progress line, prints the
 summary table, and writes ``results.json``, ``trace.csv`` and the PNG figures to
-the output directory. Ctrl-C (or SIGTERM) stops the run cleanly and still writes
-what was measured.
+the output directory.
+
+SIGINT and SIGTERM stop the command within a second at any moment. While the
+scenario loads or the robots are built, nothing is written. Once the robots run,
+what was measured is written first (``results.json``; ``trace.csv`` is written as
+the run goes, so little is left); as ``python -m cas_async`` the process then
+exits at once, leaving the robots and their sockets to the OS, without the figures.
+A file is always written whole or not at all.
 
 Exit codes: 0 the mission completed; 1 it failed or ran out of simulated time;
 2 the command line or the scenario is wrong; 130 interrupted.
@@ -15,14 +21,15 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import signal
+import gc
+import os
 import sys
-import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Final, TextIO
+from typing import Final, NoReturn, TextIO, final
 
 from ._errors import ConfigurationError
+from ._interrupts import EXIT_INTERRUPTED, Interrupted, Interrupts
 from ._runner import run
 from ._swarm_key import SwarmKey
 from .scenario import (
@@ -30,11 +37,11 @@ from .scenario import (
     RunStatus,
     Scenario,
     ScenarioError,
+    ScenarioRun,
     check_key,
     load_scenario,
-    run_scenario,
 )
-from .scenario._report import summary_table, write_results
+from .scenario._report import remove_partial_files, summary_table, write_results
 from .scenario._trace import Trace
 
 __all__ = ["main"]
@@ -42,7 +49,6 @@ __all__ = ["main"]
 EXIT_OK: Final = 0
 EXIT_FAILED: Final = 1
 EXIT_USAGE: Final = 2
-EXIT_INTERRUPTED: Final = 130
 
 _STATUS_EXIT: Final = {
     RunStatus.COMPLETED: EXIT_OK,
@@ -121,48 +127,26 @@ def _overrides(args: argparse.Namespace) -> list[str]:
     return overrides
 
 
-async def _run_until_signalled(
-    scenario: Scenario, stream: TextIO, key: SwarmKey | None
-) -> tuple[RunResult, Trace]:
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    handled = []
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.add_signal_handler(signum, stop.set)
-            handled.append(signum)
-        except (NotImplementedError, RuntimeError):  # not the main thread, or no support
-            pass
-    try:
-        return await run_scenario(scenario, progress_to=stream, stop=stop, key=key)
-    finally:
-        for signum in handled:
-            loop.remove_signal_handler(signum)
+def _write_figures(result: RunResult, trace: Trace, scenario: Scenario, out: Path) -> list[Path]:
+    from .scenario._plots import write_plots  # matplotlib is imported only here
+
+    return write_plots(
+        trace,
+        result.groups,
+        (scenario.world.width, scenario.world.height),
+        out,
+        title=f"{result.app}, {scenario.path.name}, seed {result.seed}",
+        exchanges_traced=scenario.run.trace_exchanges,
+    )
 
 
-def _write_outputs(
-    result: RunResult, trace: Trace, scenario: Scenario, out: Path, plots: bool
-) -> list[Path]:
-    written = [write_results(result, out)]
-    trace_path = out / "trace.csv"
-    trace.write_csv(trace_path)
-    written.append(trace_path)
-    if plots:
-        from .scenario._plots import write_plots  # matplotlib is imported only here
-
-        title = f"{result.app}, {scenario.path.name}, seed {result.seed}"
-        written += write_plots(
-            trace,
-            result.groups,
-            (scenario.world.width, scenario.world.height),
-            out,
-            title=title,
-            exchanges_traced=scenario.run.trace_exchanges,
-        )
-    return written
-
-
-def _command_run(args: argparse.Namespace, stdout: TextIO, stderr: TextIO) -> int:
+def _command_run(
+    args: argparse.Namespace,
+    stdout: TextIO,
+    stderr: TextIO,
+    interrupts: Interrupts,
+    owns_process: bool,
+) -> int:
     try:
         scenario = load_scenario(args.scenario, _overrides(args))
     except ScenarioError as exc:
@@ -180,41 +164,204 @@ def _command_run(args: argparse.Namespace, stdout: TextIO, stderr: TextIO) -> in
     except OSError as exc:
         print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
         return EXIT_USAGE
-    result, trace = run(_run_until_signalled(scenario, stderr, key), virtual=scenario.run.virtual)
-    with _signals_deferred() as signalled:  # what was measured is written whatever comes
-        print(summary_table(result), file=stdout)
-        if result.traceback:
-            print(result.traceback, file=stderr)
-        written = _write_outputs(result, trace, scenario, out, not args.no_plots)
-        print(f"wrote {', '.join(path.name for path in written)} to {out}/", file=stdout)
-    return EXIT_INTERRUPTED if signalled else _STATUS_EXIT[result.status]
+    stop = asyncio.Event()
+    building = "interrupted while building the robots: nothing ran"
+    try:  # synchronous, before the loop starts: a signal abandons it
+        with _leaving_at_once(interrupts, owns_process, (stdout, stderr), building):
+            scenario_run = ScenarioRun(
+                scenario, key=key, progress_to=stderr, stop=stop, trace_csv=out / "trace.csv"
+            )
+    except Interrupted:
+        print(building, file=stderr)
+        return EXIT_INTERRUPTED
+    session = _Session(
+        scenario_run, scenario, out, (stdout, stderr), interrupts, owns_process, not args.no_plots
+    )
+    with session.leaving_at_once():
+        with interrupts.calling(session.request_stop):
+            run(session.drive(stop), virtual=scenario.run.virtual)
+        return session.finish()
 
 
-@contextlib.contextmanager
-def _signals_deferred() -> Iterator[list[int]]:
-    """SIGINT and SIGTERM are noted, not acted on, inside the block (main thread only)."""
-    received: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield received
-        return
-    previous = {
-        signum: signal.signal(signum, lambda signum, _frame: received.append(signum))
-        for signum in (signal.SIGINT, signal.SIGTERM)
-    }
-    try:
-        yield received
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+@final
+class _Session:
+    """One ``run`` command from the moment its robots are built: running, writing, exiting.
+
+    Results are written as soon as the run ends, before the robots stop (for ten
+    thousand robots, stopping takes most of a second), and again once they have:
+    stopping may find a failure. Then the figures. An interrupted run whose process
+    is this command's exits once its results are written, leaving the robots (and
+    their sockets) to the OS.
+    """
+
+    def __init__(
+        self,
+        scenario_run: ScenarioRun,
+        scenario: Scenario,
+        out: Path,
+        streams: tuple[TextIO, TextIO],
+        interrupts: Interrupts,
+        owns_process: bool,
+        plots: bool,
+    ) -> None:
+        self._run = scenario_run
+        self._scenario = scenario
+        self._out = out
+        self._stdout, self._stderr = streams
+        self._interrupts = interrupts
+        self._owns_process = owns_process
+        self._plots = plots
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._written: list[Path] = []
+        self._failure_shown = False  # a traceback printed with the summary
+
+    def request_stop(self) -> None:
+        """A signal while the loop runs (called from the signal handler).
+
+        The loop is asked to stop the run at its next pass. When the process is
+        this command's, that pass ends the run there and then (see
+        :meth:`_stop_now`): waiting for the run's own tasks to notice would take
+        several passes, each a fraction of a second with thousands of robots.
+        """
+        loop, stop = self._loop, self._stop
+        if loop is None or stop is None:
+            return  # the loop is not running yet: drive() sees interrupts.received
+        with contextlib.suppress(RuntimeError):  # the loop has closed: finish() sees it
+            loop.call_soon_threadsafe(self._stop_now if self._owns_process else stop.set)
+
+    async def drive(self, stop: asyncio.Event) -> None:
+        """Starts, runs and stops the robots; writes the results as soon as the run ends."""
+        self._loop, self._stop = asyncio.get_running_loop(), stop
+        if self._interrupts.interrupted:
+            stop.set()
+        async with self._run:
+            self._ended(await self._run.until_done())
+            if self._interrupts.interrupted and self._owns_process:
+                self._exit_now()
+
+    def _stop_now(self) -> None:
+        """A loop callback, in a process of our own: ends the run, writes, exits 130."""
+        if not self._written:
+            self._ended(self._run.interrupt())
+        self._exit_now()
+
+    def _ended(self, result: RunResult) -> None:
+        """Writes results.json and trace.csv, prints the summary (a signal waits for them)."""
+        if self._written:
+            return
+        if self._owns_process:
+            # The run's objects live until the process ends: the collector need not
+            # look at them again (a full collection of 10,000 robots takes a second,
+            # and the interpreter's exit seconds).
+            gc.freeze()
+        with self._interrupts.deferred():
+            self._written = [write_results(result, self._out)]
+            if self._run.trace_csv is not None:  # written as the run went
+                self._written.append(self._run.trace_csv)
+            print(summary_table(result), file=self._stdout)
+            if result.traceback:
+                print(result.traceback, file=self._stderr)
+                self._failure_shown = True
+
+    def finish(self) -> int:
+        """After the robots stopped: what stopping found, the figures; returns the exit code."""
+        result = self._run.result
+        interrupts = self._interrupts
+        with interrupts.deferred():
+            if result.traceback and not self._failure_shown:
+                print(f"while stopping the robots:\n{result.traceback}", file=self._stderr)
+            write_results(result, self._out)  # with what stopping the robots found
+        if self._plots and not interrupts.interrupted:
+            # A signal abandons them; each file is written whole or not at all.
+            with contextlib.suppress(Interrupted):
+                self._written += _write_figures(result, self._run.trace, self._scenario, self._out)
+        self._say_written()
+        return EXIT_INTERRUPTED if interrupts.interrupted else _STATUS_EXIT[result.status]
+
+    def _say_written(self) -> None:
+        if self._written:
+            names = ", ".join(path.name for path in self._written)
+            print(f"wrote {names} to {self._out}/", file=self._stdout)
+        if self._plots and self._interrupts.interrupted:
+            print("interrupted: figures not drawn", file=self._stderr)
+
+    def leaving_at_once(self) -> contextlib.AbstractContextManager[None]:
+        """Within the block a signal ends the process at once, when it is ours; else it raises.
+
+        Inner blocks say otherwise where they must (the loop, the writes). Ending
+        at once says what was written first.
+        """
+        if not self._owns_process:
+            return contextlib.nullcontext()
+        return self._interrupts.calling(self._exit_now)
+
+    def _exit_now(self) -> NoReturn:
+        """Ends the process with 130 once the output is flushed: the OS reclaims the robots."""
+        self._say_written()
+        _exit_process((self._stdout, self._stderr))
+
+
+def _leaving_at_once(
+    interrupts: Interrupts, owns_process: bool, streams: tuple[TextIO, TextIO], say: str = ""
+) -> contextlib.AbstractContextManager[None]:
+    """Within the block a signal ends the process at once, when the process is ours.
+
+    Raising :class:`Interrupted` from the handler is not enough there: an exception
+    raised while a finalizer runs (the collector calls them at any moment) is
+    printed and dropped. Elsewhere the signal raises, best effort.
+    """
+    if not owns_process:
+        return contextlib.nullcontext()
+    return interrupts.calling(lambda: _exit_process(streams, say))
+
+
+def _exit_process(streams: tuple[TextIO, TextIO], say: str = "") -> NoReturn:
+    """Says ``say`` on stderr, removes half-written files, flushes, and exits 130 at once."""
+    stdout, stderr = streams
+    with contextlib.suppress(Exception):
+        if say:
+            print(say, file=stderr)
+        remove_partial_files()
+    for stream in (stdout, stderr, sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(EXIT_INTERRUPTED)
 
 
 def main(
-    argv: Sequence[str] | None = None, *, stdout: TextIO | None = None, stderr: TextIO | None = None
+    argv: Sequence[str] | None = None,
+    *,
+    stdout: TextIO | None = None,
+    stderr: TextIO | None = None,
+    owns_process: bool = False,
 ) -> int:
-    """Runs the command line; returns the exit code."""
+    """Runs the command line; returns the exit code.
+
+    SIGINT and SIGTERM (main thread only) stop it within a second, whatever it is
+    doing, with exit code 130 (see :mod:`cas_async._interrupts`).
+
+    Args:
+        argv: the arguments (default: ``sys.argv[1:]``).
+        stdout: where the summary goes (default: ``sys.stdout``).
+        stderr: where progress and errors go (default: ``sys.stderr``).
+        owns_process: the process is this command's (``python -m cas_async``): an
+            interrupted run then exits as soon as its results are written, without
+            stopping its robots one by one, and the collector leaves the run's
+            objects alone from the end of the run on.
+    """
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr
-    args = _parser().parse_args(argv)
-    if args.command == "run":
-        return _command_run(args, stdout, stderr)
-    raise AssertionError(f"unhandled command {args.command!r}")  # argparse requires one
+    interrupts = Interrupts().install()
+    try:
+        with _leaving_at_once(interrupts, owns_process, (stdout, stderr)):  # nothing began
+            args = _parser().parse_args(argv)
+            if args.command == "run":
+                return _command_run(args, stdout, stderr, interrupts, owns_process)
+        raise AssertionError(f"unhandled command {args.command!r}")  # argparse requires one
+    except Interrupted:
+        return EXIT_INTERRUPTED
+    finally:
+        interrupts.restore()
+        if owns_process:  # what is left is freed at exit: no collection need look at it
+            gc.freeze()

@@ -9,6 +9,7 @@ process still running when a test ends is killed.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import re
@@ -16,6 +17,7 @@ import selectors
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -365,6 +367,111 @@ def test_a_signal_stops_the_run_with_130_and_still_writes_the_results(
     assert (out / "trace.csv").read_text(encoding="utf-8").startswith(TRACE_HEADER + "\n")
 
 
+def _catches(pid: int, signum: int) -> bool:
+    """Whether process ``pid`` has a handler for ``signum`` (Linux: SigCgt in /proc)."""
+    for line in Path(f"/proc/{pid}/status").read_text(encoding="ascii").splitlines():
+        if line.startswith("SigCgt:"):
+            return bool(int(line.split()[1], 16) >> (signum - 1) & 1)
+    return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc")
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_importing_exits_130_quietly(signum: signal.Signals, tmp_path: Path) -> None:
+    # Python catches SIGINT from the start, SIGTERM only once cas_async's first line ran:
+    # from then on (the imports take a few tenths of a second) a signal exits 130.
+    out = tmp_path / "out"
+    with start_cli("run", SHIPPED, "--out", out) as process:
+        try:
+            deadline = time.monotonic() + RUN_LIMIT
+            while not _catches(process.pid, signal.SIGTERM):
+                assert process.poll() is None, "exited before the signal"
+                assert time.monotonic() < deadline, "SIGTERM never handled"
+                time.sleep(0.001)
+            process.send_signal(signum)
+            stdout, stderr = process.communicate(timeout=STOP_LIMIT)
+        finally:
+            process.kill()
+    assert process.returncode == 130, stderr
+    assert (stdout, stderr) == ("", "")  # no KeyboardInterrupt traceback
+    assert not (out / "results.json").exists()  # nothing had begun
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and pipes")
+def test_a_signal_while_building_abandons_the_build(tmp_path: Path) -> None:
+    scenario = tmp_path / "slow.toml"
+    scenario.write_text(
+        'app = "tests.scenario.fake_app:slow_build"\n[world]\nwidth = 1\nheight = 1\n',
+        encoding="utf-8",
+    )
+    out = tmp_path / "out"
+    with start_cli("run", scenario, "--out", out) as process:
+        try:
+            assert _first_line(process, RUN_LIMIT) == "building\n"  # a minute of it
+            process.send_signal(signal.SIGTERM)
+            stdout, stderr = process.communicate(timeout=STOP_LIMIT)
+        finally:
+            process.kill()
+    assert process.returncode == 130, stderr
+    assert stderr == "interrupted while building the robots: nothing ran\n"
+    assert stdout == ""
+    assert list(out.iterdir()) == []
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_a_signal_while_drawing_leaves_whole_files_only(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    with start_cli("run", SHIPPED, *FAST, "--out", out) as process:
+        try:
+            # The results are written as soon as the run ends; the figures come next.
+            deadline = time.monotonic() + RUN_LIMIT
+            while not (out / "results.json").exists():
+                assert process.poll() is None, process.communicate()
+                assert time.monotonic() < deadline, "no results.json"
+                time.sleep(0.005)
+            process.send_signal(signal.SIGINT)
+            stdout, stderr = process.communicate(timeout=STOP_LIMIT)
+        finally:
+            process.kill()
+    assert process.returncode == 130, stderr
+    assert read_results(out)["status"] == "completed"
+    assert "wrote results.json, trace.csv" in stdout
+    assert "interrupted: figures not drawn" in stderr
+    assert "Traceback" not in stderr
+    for path in out.iterdir():
+        assert not path.name.startswith("."), f"a temporary file was left: {path.name}"
+        if path.suffix == ".png":  # drawn before the signal: whole
+            assert path.read_bytes().startswith(PNG_MAGIC)
+            assert path.read_bytes().endswith(b"IEND\xaeB`\x82")
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_in_process_a_signal_stops_the_run_and_main_returns_130(tmp_path: Path) -> None:
+    # Not `python -m cas_async`: the robots are stopped one by one, nothing exits early.
+    from cas_async._cli import main
+
+    out = tmp_path / "out"
+    stdout, stderr = io.StringIO(), io.StringIO()
+    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+    before = signal.getsignal(signal.SIGINT)
+    timer.start()
+    try:
+        code = main(
+            ["run", str(LONG), "--time-factor", "2", "--transport", "memory", "--no-plots",
+             "--out", str(out)],
+            stdout=stdout,
+            stderr=stderr,
+        )  # fmt: skip
+    finally:
+        timer.cancel()
+    assert code == 130, stderr.getvalue()
+    assert signal.getsignal(signal.SIGINT) is before
+    results = read_results(out)
+    assert results["status"] == "interrupted"
+    assert 0 < results["sim_time"] < 60
+    assert "INTERRUPTED" in stdout.getvalue().splitlines()[0]
+
+
 # -- a strategy of one's own ----------------------------------------------------------------
 
 
@@ -396,17 +503,6 @@ def test_result_files_get_the_usual_permissions(virtual_run: tuple[Finished, Pat
     os.umask(umask)
     for name in ("results.json", "trace.csv"):
         assert (out / name).stat().st_mode & 0o777 == 0o666 & ~umask
-
-
-@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
-def test_signals_while_writing_are_deferred() -> None:
-    from cas_async._cli import _signals_deferred
-
-    with _signals_deferred() as received:
-        os.kill(os.getpid(), signal.SIGINT)
-        os.kill(os.getpid(), signal.SIGTERM)
-    assert received == [signal.SIGINT, signal.SIGTERM]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 # -- a layer that fails, with and without restarts -------------------------------------------

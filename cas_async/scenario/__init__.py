@@ -5,7 +5,8 @@
 * :mod:`.loader`: a scenario file end to end (``app``, ``[run]``, ``[world]``, the app's
   sections, ``--set`` overrides).
 * :mod:`.app`: the contract an application implements (:class:`SimulationApp`).
-* :mod:`.runner`: one run as a coroutine; :mod:`.results`: what it measured.
+* :mod:`.runner`: one run as a coroutine, or step by step (:class:`ScenarioRun`);
+  :mod:`.results`: what it measured.
 * :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
   the summary table and results.json, PNG figures, the live progress line.
 """
@@ -25,8 +26,8 @@ from ._plots import write_plots
 from ._progress import Progress
 from ._report import results_dict, statistics, summary_table, write_results
 from ._results import RunResult, RunStatus
-from ._runner import check_key, run_scenario
-from ._trace import Trace
+from ._runner import ScenarioRun, check_key, run_scenario
+from ._trace import Trace, TraceCsv
 
 __all__ = [
     "FaultsConfig",
@@ -37,9 +38,11 @@ __all__ = [
     "RunStatus",
     "Scenario",
     "ScenarioError",
+    "ScenarioRun",
     "SimulationApp",
     "SimulationSetup",
     "Trace",
+    "TraceCsv",
     "WorldConfig",
     "apply_overrides",
     "check_key",

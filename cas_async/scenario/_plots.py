@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 import numpy.typing as npt
 
+from ._report import atomic_binary_file
 from ._trace import Trace
 
 if TYPE_CHECKING:
@@ -218,5 +219,6 @@ def _save(figure: Figure, path: Path) -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(figure)
-    figure.savefig(path, dpi=_DPI, format="png")
+    with atomic_binary_file(path) as stream:  # an interrupted figure leaves no partial file
+        figure.savefig(stream, dpi=_DPI, format="png")
     return path

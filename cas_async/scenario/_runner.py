@@ -1,7 +1,9 @@
 """Running a loaded scenario: clock, transport, Environment, the app's swarm, and measuring it.
 
 ``run_scenario`` is the whole run as one coroutine, so it can be embedded in any
-asyncio program; the CLI only adds argument parsing, signals and output files.
+asyncio program; :class:`ScenarioRun` takes the same steps one by one, for a
+caller that acts between them (the CLI, which adds argument parsing, signals
+and output files, writes the results before the robots stop).
 The run ends when the app's target number of items has been retired, when
 ``run.max_time`` simulated seconds have passed, when ``stop`` is set (Ctrl-C), or
 when a layer fails; in every case the result says which, and holds what was
@@ -15,7 +17,8 @@ import contextlib
 import time
 import traceback
 from collections.abc import Callable
-from typing import Any, TextIO
+from pathlib import Path
+from typing import Any, TextIO, final
 
 import numpy as np
 
@@ -35,9 +38,9 @@ from ._gc_policy import young_generation_for
 from ._loader import Scenario
 from ._progress import Progress
 from ._results import RunResult, RunStatus
-from ._trace import Trace
+from ._trace import Trace, TraceCsv
 
-__all__ = ["check_key", "run_scenario"]
+__all__ = ["ScenarioRun", "check_key", "run_scenario"]
 
 
 def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
@@ -70,6 +73,243 @@ def _clock(scenario: Scenario) -> Clock:
     return VirtualClock() if run.virtual else ScaledClock(run.time_factor)
 
 
+@final
+class ScenarioRun:
+    """One run of a loaded scenario, step by step.
+
+    :func:`run_scenario` takes every step at once. A caller that must act between
+    them (the command line writes its results before the robots stop) takes them
+    one by one::
+
+        run = ScenarioRun(scenario, stop=stop)   # builds the robots: synchronous
+        async with run:                          # starts them
+            result = await run.until_done()      # the run ended: what it measured
+            ...                                  # the robots still exist, stopped or not
+        # leaving stops and closes the robots, and completes ``run.result``
+
+    Building needs no running loop, so it can happen before one starts (where a
+    signal can interrupt it: the loop cannot run while a synchronous build does).
+
+    Args:
+        scenario: a loaded, validated scenario.
+        key: the swarm key: every datagram is signed and checked (see
+            :class:`~cas_async.transport._authenticated.AuthenticatedTransport`).
+        progress_to: where to show progress while running (simulated time, items
+            delivered, exchanges): a live line on a terminal, plain lines otherwise.
+        stop: when set, the run stops early with status INTERRUPTED; set while the
+            robots start, it cancels the start.
+        observe: called with the Environment once the robots are in it, before they
+            start (a test can subscribe to ``environment.items`` there, for instance).
+        wall_clock: measures the wall time, from building to the end.
+        trace_csv: where to write the trace as CSV (see :class:`TraceCsv`): as the
+            run goes, so that little is left to write when it ends; the file is in
+            place once the run ended (:meth:`until_done`, :meth:`interrupt`), and
+            is not written at all when the robots never started.
+
+    Raises:
+        ConfigurationError: the scenario cannot run with ``key``.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        key: SwarmKey | None = None,
+        progress_to: TextIO | None = None,
+        stop: asyncio.Event | None = None,
+        observe: Callable[[Environment], None] | None = None,
+        wall_clock: Callable[[], float] = time.perf_counter,
+        trace_csv: Path | None = None,
+    ) -> None:
+        self._wall_clock = wall_clock
+        self._trace_path = trace_csv
+        self._trace_csv: TraceCsv | None = None
+        self._started = wall_clock()
+        self._scenario = scenario
+        self._stop = asyncio.Event() if stop is None else stop  # interrupt() sets it too
+        run = scenario.run
+        self.environment = environment = Environment()
+        self._clock = clock = _clock(scenario)
+        self._transport = _transport(scenario, clock, key)
+        setup: SimulationSetup[Any] = SimulationSetup(
+            scenario.config,
+            (scenario.world.width, scenario.world.height),
+            environment,
+            clock,
+            self._transport,
+            np.random.default_rng(run.seed),
+            run.restart,
+        )
+        self._mission = mission = scenario.app.build(setup)
+        self._progress = None
+        if progress_to is not None:
+            self._progress = Progress(
+                progress_to,
+                target=mission.target,
+                item_name=scenario.app.item_name,
+                interval=run.progress_interval,
+            )
+        self.result = RunResult(
+            scenario=str(scenario.path),
+            app=scenario.app.name,
+            item_name=scenario.app.item_name,
+            seed=run.seed,
+            target=mission.target,
+            groups={label: list(ids) for label, ids in mission.groups.items()},
+            config=scenario.data,
+        )
+        """What the run measured: complete once the robots have stopped."""
+        self.trace = Trace(environment.robot_ids)
+        """Where the robots were over simulated time."""
+        self._complete = asyncio.Event()
+        environment.items.subscribe(self._on_item)
+        if observe is not None:
+            observe(environment)
+        self._swarm = Swarm(mission.robots)
+        self._started_swarm = False
+        self._ended = False
+        self._gc = contextlib.ExitStack()
+
+    def _on_item(self, event: ItemEvent) -> None:
+        if self._ended:  # measured: what the robots still do until they stop is not
+            return
+        ledger = self.environment.items
+        if event.kind is ItemEventKind.TRANSFERRED:
+            if self._scenario.run.trace_exchanges:
+                xy = self.environment.positions_at(event.t).xy
+                self.trace.exchange(event.t, ledger.transfers, xy)
+        elif event.kind is ItemEventKind.RETIRED and ledger.retired == self._mission.target:
+            self.result.makespan = event.t
+            self._complete.set()
+        if self._progress is not None:
+            self._progress.update(event.t, ledger.retired, ledger.transfers)
+
+    @property
+    def swarm(self) -> Swarm:
+        """The robots the application built, as one swarm (started by ``async with``)."""
+        return self._swarm
+
+    async def __aenter__(self) -> ScenarioRun:
+        """Starts the robots; when ``stop`` is set meanwhile, the start is undone instead."""
+        # While the swarm runs, the collector's youngest generation is sized to it.
+        self._gc.enter_context(young_generation_for(len(self._swarm)))
+        starting = asyncio.ensure_future(self._swarm.__aenter__())
+        stopped = asyncio.ensure_future(self._stop.wait())
+        try:
+            await asyncio.wait((starting, stopped), return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            stopped.cancel()
+            if not starting.done():
+                starting.cancel()  # the swarm closes what it had opened
+                with contextlib.suppress(asyncio.CancelledError):
+                    await starting
+        if starting.cancelled():
+            return self
+        starting.result()  # its error, if the start failed
+        self._started_swarm = True
+        if self._trace_path is not None:
+            self._trace_csv = TraceCsv(self.trace, self._trace_path)
+        return self
+
+    async def until_done(self) -> RunResult:
+        """Runs until the target, ``max_time``, ``stop`` or a failure; measures; returns the result.
+
+        The robots are not stopped yet: leaving the ``async with`` block does that.
+        """
+        if self._ended:
+            return self.result
+        if not self._started_swarm:  # stopped while starting
+            return self._end(RunStatus.INTERRUPTED, None)
+        try:
+            status, failure = await _until_done(
+                self._swarm,
+                self._clock,
+                self._scenario.run.max_time,
+                self._scenario.run.trace_interval,
+                self._complete,
+                self._stop,
+                self._sample,
+            )
+        except LayerError as error:  # the swarm's, raised again as its task is awaited
+            status, failure = RunStatus.FAILED, error
+        except BaseException:
+            self._close_progress(final=False)
+            raise
+        return self._end(status, failure)
+
+    def interrupt(self) -> RunResult:
+        """Ends the run where it stands, as a set ``stop`` does, but at once; returns the result.
+
+        For a loop callback that must not wait for the loop to get round to the
+        stop (with ten thousand robots starting, that takes several passes of a
+        fraction of a second each): what the run measured is final when this
+        returns, and :meth:`until_done` returns it. The robots still run until
+        the ``async with`` block is left.
+        """
+        self._stop.set()
+        return self._end(RunStatus.INTERRUPTED, None)
+
+    def _end(self, status: RunStatus, failure: BaseException | None) -> RunResult:
+        """Measures the run as it ended, once; later calls return the same result."""
+        result = self.result
+        if self._ended:
+            return result
+        self._ended = True
+        result.status = status
+        if failure is not None:
+            _failed(result, failure)
+        _measure(result, self._mission, self._swarm, self.environment, self._clock.now())
+        self._count_faults()
+        if self._trace_csv is not None:
+            self._trace_csv.close()
+        result.wall_time = self._wall_clock() - self._started
+        self._close_progress(final=True)
+        return result
+
+    @property
+    def trace_csv(self) -> Path | None:
+        """The trace's CSV file, once written (see the ``trace_csv`` argument)."""
+        if self._trace_csv is None or not self._ended:
+            return None
+        return self._trace_csv.path
+
+    async def __aexit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object
+    ) -> None:
+        """Stops and closes the robots; a layer failure found on the way fails the result."""
+        try:
+            if self._started_swarm:
+                await self._swarm.__aexit__(exc_type, exc, tb)
+        except LayerError as error:  # a failure that running did not raise
+            _failed(self.result, error)
+        finally:
+            self._gc.close()
+            if self._trace_csv is not None and not self._ended:
+                self._trace_csv.discard()  # the run ended by an exception: no trace
+            self._close_progress(final=False)
+            self._count_faults()  # read after the swarm closed its endpoints
+            self.result.wall_time = self._wall_clock() - self._started
+
+    def _sample(self, t: float) -> None:
+        if self._ended:
+            return
+        ledger = self.environment.items
+        _sample(t, self.environment, self.trace, self._progress, ledger.retired, ledger.transfers)
+        if self._trace_csv is not None:
+            self._trace_csv.write_until(t)  # what came before this sample is final
+
+    def _count_faults(self) -> None:
+        transport = self._transport
+        wire = transport.inner if isinstance(transport, AuthenticatedTransport) else transport
+        if isinstance(wire, FaultyTransport):
+            self.result.faults = wire.stats
+
+    def _close_progress(self, *, final: bool) -> None:
+        if self._progress is not None:
+            self._progress.close(final=final)
+            self._progress = None
+
+
 async def run_scenario(
     scenario: Scenario,
     *,
@@ -85,99 +325,19 @@ async def run_scenario(
     virtual=s.run.virtual)``. While the swarm runs, the garbage collector's
     youngest generation is sized to the swarm (see :mod:`.gc_policy`): the
     process-wide threshold is raised for thousands of robots, then restored.
-
-    Args:
-        scenario: a loaded, validated scenario.
-        progress_to: where to show progress while running (simulated time, items
-            delivered, exchanges): a live line on a terminal, plain lines otherwise.
-        stop: when set, the run stops early with status INTERRUPTED.
-        observe: called with the Environment once the robots are in it, before they
-            start (a test can subscribe to ``environment.items`` there, for instance).
-        wall_clock: measures the wall time.
-        key: the swarm key: every datagram is signed and checked (see
-            :class:`~cas_async.transport._authenticated.AuthenticatedTransport`).
+    The arguments are :class:`ScenarioRun`'s, which takes the same steps one by one.
     """
-    started = wall_clock()
-    run = scenario.run
-    world = (scenario.world.width, scenario.world.height)
-    environment = Environment()
-    clock = _clock(scenario)
-    transport = _transport(scenario, clock, key)
-    setup: SimulationSetup[Any] = SimulationSetup(
-        scenario.config,
-        world,
-        environment,
-        clock,
-        transport,
-        np.random.default_rng(run.seed),
-        run.restart,
+    run = ScenarioRun(
+        scenario,
+        key=key,
+        progress_to=progress_to,
+        stop=stop,
+        observe=observe,
+        wall_clock=wall_clock,
     )
-    mission = scenario.app.build(setup)
-    progress = None
-    if progress_to is not None:
-        progress = Progress(
-            progress_to,
-            target=mission.target,
-            item_name=scenario.app.item_name,
-            interval=run.progress_interval,
-        )
-    result = RunResult(
-        scenario=str(scenario.path),
-        app=scenario.app.name,
-        item_name=scenario.app.item_name,
-        seed=run.seed,
-        target=mission.target,
-        groups={label: list(ids) for label, ids in mission.groups.items()},
-        config=scenario.data,
-    )
-    trace = Trace(environment.robot_ids)
-    ledger = environment.items
-    complete = asyncio.Event()
-
-    def on_item(event: ItemEvent) -> None:
-        if event.kind is ItemEventKind.TRANSFERRED:
-            if run.trace_exchanges:
-                trace.exchange(event.t, ledger.transfers, environment.positions_at(event.t).xy)
-        elif event.kind is ItemEventKind.RETIRED and ledger.retired == mission.target:
-            result.makespan = event.t
-            complete.set()
-        if progress is not None:
-            progress.update(event.t, ledger.retired, ledger.transfers)
-
-    ledger.subscribe(on_item)
-    if observe is not None:
-        observe(environment)
-    swarm = Swarm(mission.robots)
-    try:
-        with young_generation_for(len(mission.robots)):
-            async with swarm:
-                result.status, failure = await _until_done(
-                    swarm,
-                    clock,
-                    run.max_time,
-                    run.trace_interval,
-                    complete,
-                    stop,
-                    lambda t: _sample(
-                        t, environment, trace, progress, ledger.retired, ledger.transfers
-                    ),
-                )
-        if failure is not None:
-            _failed(result, failure)
-    except LayerError as exc:  # raised again on the way out when a layer failed
-        _failed(result, exc)
-    except BaseException:
-        if progress is not None:
-            progress.close(final=False)  # whatever is printed next starts on a fresh line
-        raise
-    _measure(result, mission, swarm, environment, clock.now())
-    wire = transport.inner if isinstance(transport, AuthenticatedTransport) else transport
-    if isinstance(wire, FaultyTransport):  # read after the swarm closed its endpoints
-        result.faults = wire.stats
-    result.wall_time = wall_clock() - started
-    if progress is not None:
-        progress.close(final=True)
-    return result, trace
+    async with run:
+        await run.until_done()
+    return run.result, run.trace
 
 
 def _sample(

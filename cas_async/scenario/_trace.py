@@ -17,15 +17,15 @@ from bisect import bisect_right
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
 
 from .._errors import SimulationError
-from ._report import atomic_text_file
+from ._report import AtomicFile
 
-__all__ = ["Trace"]
+__all__ = ["Trace", "TraceCsv"]
 
 _FloatArray = npt.NDArray[np.float64]
 _IntArray = npt.NDArray[np.int64]
@@ -220,28 +220,80 @@ class Trace:
         snapshots; at equal times the regular sample comes first. Numbers are
         written with ``repr``, so they read back exactly. The file is replaced
         atomically: an interrupted write leaves the previous file (or none).
+        :class:`TraceCsv` writes the same file as the samples come.
         """
-        ids = [str(robot_id) for robot_id in self._ids]
-        with atomic_text_file(Path(path)) as stream:
-            stream.write("t,robot,x,y,exchange\n")
-            for t, exchange, xy in self._in_time_order():
-                prefix = f"{t!r},"
-                stream.write(
-                    "".join(
-                        f"{prefix}{robot_id},{x!r},{y!r},{exchange}\n"
-                        for robot_id, (x, y) in zip(ids, xy.tolist(), strict=True)
-                    )
-                )
+        TraceCsv(self, path).close()
 
-    def _in_time_order(self) -> Iterator[tuple[float, str, _FloatArray]]:
-        """Merges the two streams (each already in time order); samples first on ties."""
-        i = j = 0
+    def in_time_order(
+        self, sample: int = 0, snapshot: int = 0
+    ) -> Iterator[tuple[float, str, _FloatArray, int, int]]:
+        """The two streams merged in time order, from ``sample`` and ``snapshot`` on.
+
+        Samples come first on ties. Yields ``(t, exchange, xy, next_sample,
+        next_snapshot)``: ``exchange`` is ``""`` for a sample and the count for a
+        snapshot; the last two say where to go on from after this record.
+        """
+        i, j = sample, snapshot
         while i < len(self._times) or j < len(self._ex_times):
             if j == len(self._ex_times) or (
                 i < len(self._times) and self._times[i] <= self._ex_times[j]
             ):
-                yield self._times[i], "", self._xy[i]
                 i += 1
+                yield self._times[i - 1], "", self._xy[i - 1], i, j
             else:
-                yield self._ex_times[j], str(self._ex_counts[j]), self._ex_xy[j]
                 j += 1
+                yield self._ex_times[j - 1], str(self._ex_counts[j - 1]), self._ex_xy[j - 1], i, j
+
+
+@final
+class TraceCsv:
+    """``trace.csv`` of a trace that is still growing, written as it grows.
+
+    A row is final once a later instant has been recorded (a snapshot at the same
+    instant as a sample still goes after it): :meth:`write_until` writes what is
+    final, :meth:`close` the rest, then puts the file in place atomically. A run
+    of ten thousand robots thus writes its trace a sample at a time, not a
+    million rows at its very end. The format is :meth:`Trace.write_csv`'s.
+
+    Args:
+        trace: the trace to write.
+        path: the CSV file; it appears (or is replaced) only at :meth:`close`.
+    """
+
+    def __init__(self, trace: Trace, path: Path) -> None:
+        self._trace = trace
+        self._ids = [f"{robot_id}," for robot_id in trace.ids]
+        self._file = AtomicFile(Path(path))
+        self._file.stream.write("t,robot,x,y,exchange\n")
+        self._next = (0, 0)  # the sample and the snapshot to write next
+
+    @property
+    def path(self) -> Path:
+        """Where the file goes."""
+        return self._file.path
+
+    def write_until(self, t: float) -> None:
+        """Writes the rows of every instant before ``t`` not written yet."""
+        stream = self._file.stream
+        for at, exchange, xy, *after in self._trace.in_time_order(*self._next):
+            if at >= t:
+                break
+            stream.write(self._rows(at, exchange, xy))
+            self._next = (after[0], after[1])
+        stream.flush()  # the temporary file can be followed as the run goes
+
+    def close(self) -> Path:
+        """Writes the remaining rows and puts the file in place; returns its path."""
+        self.write_until(math.inf)
+        return self._file.commit()
+
+    def discard(self) -> None:
+        """Drops the file: the path stays as it was. Idempotent."""
+        self._file.discard()
+
+    def _rows(self, t: float, exchange: str, xy: _FloatArray) -> str:
+        prefix, suffix = f"{t!r},", f",{exchange}\n"
+        return "".join(
+            f"{prefix}{robot_id}{x!r},{y!r}{suffix}"
+            for robot_id, (x, y) in zip(self._ids, xy.tolist(), strict=True)
+        )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -73,3 +75,17 @@ class _Clashing(FakeApp):
 
 
 clashing = _Clashing()
+
+
+class _SlowBuild(FakeApp):
+    """Says "building" on stderr, then takes up to a minute to build nothing."""
+
+    def build(self, setup: SimulationSetup) -> Mission:
+        print("building", file=sys.stderr, flush=True)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            time.sleep(0.01)
+        return Mission(robots=[], target=0)
+
+
+slow_build = _SlowBuild()

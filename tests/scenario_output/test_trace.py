@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cas_async import SimulationError
-from cas_async.scenario import Trace
+from cas_async.scenario import Trace, TraceCsv
 
 
 def xy_of(*points: tuple[float, float]) -> np.ndarray:
@@ -206,3 +206,32 @@ def test_many_samples_stay_cheap() -> None:
         trace.sample(float(k), xy)
     assert trace.positions.shape == (10_000, 200, 2)
     assert trace.at_time(12_345.5) is trace.at_time(12_345.0)
+
+
+def test_csv_written_as_the_trace_grows_is_the_same_file(trace: Trace, tmp_path: Path) -> None:
+    whole = tmp_path / "whole.csv"
+    trace.write_csv(whole)
+    growing = Trace(trace.ids)
+    path = tmp_path / "growing.csv"
+    writer = TraceCsv(growing, path)
+    growing.sample(0.0, trace.positions[0])
+    growing.sample(1.0, trace.positions[1])
+    writer.write_until(1.0)  # t = 1 may still get a snapshot: only t = 0 is final
+    growing.exchange(1.0, 1, trace.exchange_positions[0])
+    growing.exchange(1.5, 3, trace.exchange_positions[1])
+    writer.write_until(1.5)
+    assert not path.exists()  # in place only once closed
+    growing.sample(2.0, trace.positions[2])
+    assert writer.close() == path
+    assert path.read_text() == whole.read_text()
+
+
+def test_a_discarded_csv_leaves_the_previous_file(trace: Trace, tmp_path: Path) -> None:
+    path = tmp_path / "trace.csv"
+    path.write_text("before\n")
+    writer = TraceCsv(trace, path)
+    writer.write_until(1.5)
+    writer.discard()
+    writer.discard()
+    assert path.read_text() == "before\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["trace.csv"]

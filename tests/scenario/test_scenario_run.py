@@ -1,0 +1,117 @@
+"""A run step by step (ScenarioRun): build, start, until done, measured before the robots stop."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+
+import cas_async
+from cas_async import RobotState
+from cas_async.scenario import RunStatus, ScenarioRun, load_scenario, run_scenario
+from tests.fire_brigade.helpers import SCENARIOS, VIRTUAL
+
+SHIPPED = SCENARIOS / "thesis_5_8_1.toml"
+
+
+def test_the_steps_measure_what_run_scenario_measures() -> None:
+    scenario = load_scenario(SHIPPED, [*VIRTUAL, "run.seed=4"])
+    whole, _ = cas_async.run(run_scenario(scenario), virtual=True)
+
+    async def stepwise() -> ScenarioRun:
+        run = ScenarioRun(scenario)
+        async with run:
+            result = await run.until_done()
+            assert result is run.result
+            assert all(robot.state is RobotState.RUNNING for robot in run.swarm)
+        assert all(robot.state is RobotState.STOPPED for robot in run.swarm)
+        return run
+
+    run = cas_async.run(stepwise(), virtual=True)
+    assert run.result.status is RunStatus.COMPLETED
+    assert (run.result.makespan, run.result.exchanges) == (whole.makespan, whole.exchanges)
+    assert run.result.messages_external == whole.messages_external
+
+
+def test_interrupt_ends_the_run_at_once_with_what_it_measured() -> None:
+    scenario = load_scenario(SHIPPED, VIRTUAL)
+
+    async def interrupted() -> ScenarioRun:
+        run = ScenarioRun(scenario)
+        async with run:
+            loop = asyncio.get_running_loop()
+            # A loop callback at simulated t = 5, as the command line schedules on a signal.
+            loop.call_at(5.0, run.interrupt)
+            result = await run.until_done()
+            assert result.sim_time == 5.0  # measured in the callback, not when the task woke
+            assert result.status is RunStatus.INTERRUPTED
+        return run
+
+    run = cas_async.run(interrupted(), virtual=True)
+    assert run.result.status is RunStatus.INTERRUPTED
+    assert run.result.exchanges > 0
+    assert run.result.makespan is None
+
+
+def test_a_stop_while_the_robots_open_undoes_the_start() -> None:
+    # UDP sockets open one await at a time: a stop set beforehand lands mid-start.
+    scenario = load_scenario(SHIPPED)
+    stop = asyncio.Event()
+    stop.set()
+
+    async def stopped() -> ScenarioRun:
+        run = ScenarioRun(scenario, stop=stop)
+        async with run:
+            result = await run.until_done()
+        assert result.status is RunStatus.INTERRUPTED
+        assert result.sim_time < 1.0
+        return run
+
+    run = cas_async.run(stopped())
+    states = {robot.state for robot in run.swarm}
+    assert states <= {RobotState.CREATED, RobotState.STOPPED}  # no socket left open
+    assert RobotState.CREATED in states  # the start was cut short
+
+
+def test_the_trace_file_is_written_as_the_run_goes_and_in_place_when_it_ends(
+    tmp_path: Path,
+) -> None:
+    scenario = load_scenario(SHIPPED, VIRTUAL)
+    path = tmp_path / "trace.csv"
+    seen: dict[str, object] = {}
+
+    def look() -> None:
+        (partial,) = tmp_path.glob(".trace.csv.*.tmp")
+        seen["rows at t = 10"] = partial.read_text().count("\n")
+        seen["in place at t = 10"] = path.exists()
+
+    async def traced() -> ScenarioRun:
+        run = ScenarioRun(scenario, trace_csv=path)
+        async with run:
+            asyncio.get_running_loop().call_at(10.0, look)  # simulated t = 10
+            assert run.trace_csv is None
+            await run.until_done()
+            assert run.trace_csv == path  # before the robots stop
+        return run
+
+    run = cas_async.run(traced(), virtual=True)
+    rows = path.read_text().count("\n")
+    assert seen["in place at t = 10"] is False
+    assert isinstance(seen["rows at t = 10"], int)
+    assert 1 < seen["rows at t = 10"] < rows
+    assert rows == 1 + len(run.trace.ids) * (len(run.trace.times) + len(run.trace.exchange_times))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["trace.csv"]
+
+
+def test_a_run_that_never_started_writes_no_trace(tmp_path: Path) -> None:
+    scenario = load_scenario(SHIPPED)
+    stop = asyncio.Event()
+    stop.set()
+
+    async def stopped() -> None:
+        run = ScenarioRun(scenario, stop=stop, trace_csv=tmp_path / "trace.csv")
+        async with run:
+            await run.until_done()
+            assert run.trace_csv is None
+
+    cas_async.run(stopped())
+    assert list(tmp_path.iterdir()) == []

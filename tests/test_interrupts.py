@@ -1,0 +1,95 @@
+"""What SIGINT and SIGTERM do while the command line runs, in this process (main thread)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from cas_async._interrupts import Interrupted, Interrupts, _launched_as_cli
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+
+def _raise(signum: int) -> None:
+    os.kill(os.getpid(), signum)
+
+
+@pytest.fixture
+def interrupts() -> Iterator[Interrupts]:
+    taken = Interrupts().install()
+    yield taken
+    taken.restore()
+
+
+def test_by_default_a_signal_raises_interrupted(interrupts: Interrupts) -> None:
+    with pytest.raises(Interrupted) as caught:
+        _raise(signal.SIGTERM)
+    assert caught.value.signum == signal.SIGTERM
+    assert str(caught.value) == "interrupted by SIGTERM"
+    assert not isinstance(caught.value, Exception)  # `except Exception` cannot swallow it
+    assert interrupts.received == [signal.SIGTERM]
+
+
+def test_calling_runs_the_action_instead(interrupts: Interrupts) -> None:
+    called: list[str] = []
+    with interrupts.calling(lambda: called.append("stop")):
+        _raise(signal.SIGINT)
+        _raise(signal.SIGTERM)
+    assert called == ["stop", "stop"]
+    assert interrupts.received == [signal.SIGINT, signal.SIGTERM]
+    with pytest.raises(Interrupted):  # the action is gone with the block
+        _raise(signal.SIGINT)
+
+
+def test_deferred_only_notes_even_inside_calling(interrupts: Interrupts) -> None:
+    called: list[str] = []
+    with interrupts.calling(lambda: called.append("stop")), interrupts.deferred():
+        _raise(signal.SIGINT)
+    assert called == []
+    assert interrupts.interrupted
+
+
+def test_restore_gives_the_handlers_back() -> None:
+    before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    taken = Interrupts().install()
+    assert signal.getsignal(signal.SIGINT) != before[0]
+    taken.restore()
+    assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+
+
+def test_outside_the_main_thread_nothing_is_installed() -> None:
+    before = signal.getsignal(signal.SIGINT)
+    seen: list[object] = []
+
+    def install() -> None:
+        Interrupts().install()
+        seen.append(signal.getsignal(signal.SIGINT))
+
+    thread = threading.Thread(target=install)
+    thread.start()
+    thread.join(10)
+    assert seen == [before]
+
+
+@pytest.mark.parametrize(
+    ("argv0", "orig_argv", "expected"),
+    [
+        pytest.param("-m", ["python", "-m", "cas_async", "run", "x"], True, id="cli"),
+        pytest.param("-m", ["python", "-X", "dev", "-m", "cas_async"], True, id="options-first"),
+        pytest.param("-m", ["python", "-mcas_async"], True, id="joined"),
+        pytest.param("-m", ["python", "-m", "cas_async.tools"], False, id="a-submodule"),
+        pytest.param("-m", ["python", "-m", "pytest"], False, id="another-program"),
+        pytest.param("/x/pytest", ["python", "-m", "pytest"], False, id="already-running"),
+    ],
+)
+def test_the_early_handler_is_only_for_python_m_cas_async(
+    monkeypatch: pytest.MonkeyPatch, argv0: str, orig_argv: list[str], expected: bool
+) -> None:
+    monkeypatch.setattr(sys, "argv", [argv0])
+    monkeypatch.setattr(sys, "orig_argv", orig_argv)
+    assert _launched_as_cli() is expected
