@@ -6,7 +6,8 @@ summary table, and writes ``results.json``, ``trace.csv`` and the PNG figures to
 the output directory.
 
 SIGINT and SIGTERM stop the command within a second at any moment. While the
-scenario loads or the robots are built, nothing is written. Once the robots run,
+scenario loads, nothing is written; while the robots are built, ``results.json``
+says the run was interrupted before anything ran. Once the robots run,
 what was measured is written first (``results.json``; ``trace.csv`` is written as
 the run goes, so little is left); as ``python -m cas_async`` the process then
 exits at once, leaving the robots and their sockets to the OS, without the figures.
@@ -24,7 +25,8 @@ import contextlib
 import gc
 import os
 import sys
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Final, NoReturn, TextIO, final
 
@@ -165,14 +167,26 @@ def _command_run(
         print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
         return EXIT_USAGE
     stop = asyncio.Event()
-    building = "interrupted while building the robots: nothing ran"
+    started = time.perf_counter()
+
+    def abandon_build() -> None:
+        """The verdict of a run interrupted before its robots existed."""
+        write_results(_not_built(scenario, time.perf_counter() - started), out)
+        print("interrupted while building the robots: nothing ran", file=stderr)
+        print(f"wrote results.json to {out}/", file=stdout)
+
     try:  # synchronous, before the loop starts: a signal abandons it
-        with _leaving_at_once(interrupts, owns_process, (stdout, stderr), building):
+        with _leaving_at_once(interrupts, owns_process, (stdout, stderr), abandon_build):
             scenario_run = ScenarioRun(
-                scenario, key=key, progress_to=stderr, stop=stop, trace_csv=out / "trace.csv"
+                scenario,
+                key=key,
+                progress_to=stderr,
+                stop=stop,
+                trace_csv=out / "trace.csv",
             )
     except Interrupted:
-        print(building, file=stderr)
+        with interrupts.deferred():
+            abandon_build()
         return EXIT_INTERRUPTED
     session = _Session(
         scenario_run, scenario, out, (stdout, stderr), interrupts, owns_process, not args.no_plots
@@ -302,8 +316,24 @@ class _Session:
         _exit_process((self._stdout, self._stderr))
 
 
+def _not_built(scenario: Scenario, wall_time: float) -> RunResult:
+    """An interrupted run whose robots were never built: nothing ran, no target known."""
+    return RunResult(
+        scenario=str(scenario.path),
+        app=scenario.app.name,
+        item_name=scenario.app.item_name,
+        seed=scenario.run.seed,
+        status=RunStatus.INTERRUPTED,
+        wall_time=wall_time,
+        config=scenario.data,
+    )
+
+
 def _leaving_at_once(
-    interrupts: Interrupts, owns_process: bool, streams: tuple[TextIO, TextIO], say: str = ""
+    interrupts: Interrupts,
+    owns_process: bool,
+    streams: tuple[TextIO, TextIO],
+    last_words: Callable[[], None] | None = None,
 ) -> contextlib.AbstractContextManager[None]:
     """Within the block a signal ends the process at once, when the process is ours.
 
@@ -313,15 +343,18 @@ def _leaving_at_once(
     """
     if not owns_process:
         return contextlib.nullcontext()
-    return interrupts.calling(lambda: _exit_process(streams, say))
+    return interrupts.calling(lambda: _exit_process(streams, last_words))
 
 
-def _exit_process(streams: tuple[TextIO, TextIO], say: str = "") -> NoReturn:
-    """Says ``say`` on stderr, removes half-written files, flushes, and exits 130 at once."""
+def _exit_process(
+    streams: tuple[TextIO, TextIO], last_words: Callable[[], None] | None = None
+) -> NoReturn:
+    """Calls ``last_words``, removes half-written files, flushes, and exits 130 at once."""
     stdout, stderr = streams
     with contextlib.suppress(Exception):
-        if say:
-            print(say, file=stderr)
+        if last_words is not None:
+            last_words()
+    with contextlib.suppress(Exception):
         remove_partial_files()
     for stream in (stdout, stderr, sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):

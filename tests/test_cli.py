@@ -414,8 +414,15 @@ def test_a_signal_while_building_abandons_the_build(tmp_path: Path) -> None:
             process.kill()
     assert process.returncode == 130, stderr
     assert stderr == "interrupted while building the robots: nothing ran\n"
-    assert stdout == ""
-    assert list(out.iterdir()) == []
+    assert stdout == f"wrote results.json to {out}/\n"
+    assert [path.name for path in out.iterdir()] == ["results.json"]
+    results = read_results(out)
+    assert (results["status"], results["sim_time"], results["delivered"]) == (
+        "interrupted",
+        0.0,
+        0,
+    )
+    assert 0 < results["wall_time"] < RUN_LIMIT
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
