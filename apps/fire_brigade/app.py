@@ -100,6 +100,18 @@ class FireBrigade:
                     f"expected at most speed ({fleet.speed:g}), got {fleet.min_speed:g}",
                 )
             )
+        messaging = config.messaging
+        if messaging.patience <= fleet.handover_time + messaging.timeout:
+            # A giver says nothing while it hands over, and a receiver calls every
+            # timeout: with less patience every receiver gives up mid-hand-over.
+            problems.append(
+                (
+                    "messaging.patience",
+                    "expected more than transporters.handover_time + messaging.timeout "
+                    f"({fleet.handover_time:g} + {messaging.timeout:g}), got {messaging.patience:g}"
+                    ": a receiver would give up during every hand-over",
+                )
+            )
         try:
             strategy_class(config.strategy.name)
         except ValueError as exc:

@@ -127,6 +127,12 @@ def test_borderline_values_are_accepted(overrides: list[str]) -> None:
             id="min-speed-above-speed",
         ),
         pytest.param(
+            ["transporters.handover_time=6", "messaging.patience=5"],
+            "messaging.patience",
+            "expected more than transporters.handover_time + messaging.timeout (6 + 0.5), got 5",
+            id="patience-shorter-than-a-hand-over",
+        ),
+        pytest.param(
             ["strategy.name=fastest"],
             "strategy.name",
             "expected one of time, random, solo or 'package.module:Class', got 'fastest'",
