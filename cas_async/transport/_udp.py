@@ -128,6 +128,14 @@ class UdpDirectory:
         """Stops telling ``sink``; no error when it was not watching."""
         self._watchers.pop(sink, None)
 
+    @property
+    def senders(self) -> Mapping[tuple[Any, ...], RobotId]:
+        """Robot by exact source address, kept up to date (read-only; see :meth:`sender`).
+
+        The per-datagram fast path: one dict lookup, :meth:`sender` only on a miss.
+        """
+        return self._senders
+
     def sender(self, source: Any) -> RobotId | None:
         """The robot that sends from ``source`` (a datagram's source address), or ``None``.
 
@@ -196,7 +204,7 @@ class _Protocol(asyncio.DatagramProtocol):
 
     def __init__(self, sink: DatagramSink, directory: UdpDirectory) -> None:
         self._sink = sink
-        self._senders = directory._senders  # read per datagram: skip the method call
+        self._senders = directory.senders  # read per datagram: skip the method call
         self._directory = directory
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
