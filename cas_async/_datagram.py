@@ -31,6 +31,7 @@ A datagram of 64 KiB of empty arrays, which took the pure-Python unpacker 15 to
 from __future__ import annotations
 
 import re
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Final
@@ -52,6 +53,7 @@ MAX_NESTING: Final = 500
 _WALK: Final = msgspec.msgpack.Decoder(msgspec.Raw)
 _MSGSPEC_ERROR: Final = re.compile(r"Expected `(.*?)`, got `(.*?)`(?: - at `(.*)`)?")
 _MSGSPEC_BOUND: Final = re.compile(r"Expected `(\w+)` ([<>]=? \S+)(?: - at `(.*)`)?")
+_LARGEST_FLOAT: Final = repr(sys.float_info.max)
 
 # First bytes of arrays and maps: fixarray, fixmap, array16/32, map16/32.
 _ARRAY_FIRST: Final = frozenset([*range(0x90, 0xA0), 0xDC, 0xDD])
@@ -86,7 +88,9 @@ def _refusal(path: str, exc: msgspec.ValidationError) -> DecodeError:
     bound = _MSGSPEC_BOUND.fullmatch(text)
     if bound is not None:
         kind, limit, at = bound.groups()
-        return DecodeError(f"{path}{(at or '$')[1:]}: expected {kind} {limit}", "out_of_range")
+        # "Finite" is put to msgspec as the largest floats (see _schema): say finite.
+        wanted = f"{kind}(finite)" if limit.endswith(_LARGEST_FLOAT) else f"{kind} {limit}"
+        return DecodeError(f"{path}{(at or '$')[1:]}: expected {wanted}", "out_of_range")
     match = _MSGSPEC_ERROR.fullmatch(text)
     if match is None:
         return DecodeError(f"{path}: {text[:200]}", "wrong_type")

@@ -6,14 +6,15 @@ layer of its level or dropped and counted in ``robot.dropped`` under its reason,
 checked in this order:
 
 * ``not_running``: the robot is not running (a datagram after stop);
+* ``unknown_source``: the transport knows no robot at its source (an address that
+  is no robot's, or a signature of nobody's): it speaks for nobody, whatever it
+  claims, and is refused before it is decoded, so a stranger's datagrams cost a
+  lookup, not a decode, and blame no robot in the log;
 * ``decode.<reason>``, ``stack_mismatch``: not a valid datagram of this stack;
 * ``cross_level``, ``no_such_layer``: external messages connect same levels only;
 * ``from_own_id``: it claims to come from this very robot;
-* ``spoofed_sender``: the header claims a robot the transport knows, but the
-  transport names another sender (by source address, or an authenticated id),
-  or none: a datagram from an address that is no robot's speaks for nobody;
-* ``unknown_sender``: it claims a robot this robot cannot reach (a reply to it
-  could only fail);
+* ``spoofed_sender``: the header claims another robot than the one the transport
+  names as its sender (by source address, or an authenticated id);
 * ``future_id``: its message id is beyond any an honest sender can have used yet
   (ids count from the sender's clock, see :mod:`cas_async._dedup`): a forged id
   that would otherwise make the sender's real messages look old;
@@ -133,10 +134,15 @@ class Reception:
         if now is None:
             self._drops.drop("not_running", "%s while not running", _Described(data))
             return
+        if sender is None:
+            self._drops.drop(
+                "unknown_source", "%s from an address that is no robot's", _Described(data)
+            )
+            return
         try:
             msg = self._decode(data)
         except StackMismatchError as exc:
-            self._refuse_stack(exc)
+            self._refuse_stack(exc, sender)
             return
         except DecodeError as exc:
             self._drops.drop(f"decode.{exc.reason}", "%s", exc)
@@ -155,15 +161,9 @@ class Reception:
         elif claimed == self._robot_id:
             self._drops.drop("from_own_id", "external %s claims to come from this robot", msg)
         elif claimed != sender:
-            # The transport names every sender it knows (source address, signature):
-            # a claim it does not confirm, or a datagram from nobody it knows, is refused.
-            if sender is not None or self._outbox.knows(claimed):
-                by = f"robot {sender}" if sender is not None else "an address that is no robot's"
-                self._drops.drop("spoofed_sender", "external %s was sent by %s", msg, by)
-            else:
-                self._drops.drop(
-                    "unknown_sender", "external %s from a robot this one cannot reach", msg
-                )
+            # The transport names the sender (source address, signature): a claim it
+            # does not confirm is refused.
+            self._drops.drop("spoofed_sender", "external %s was sent by robot %s", msg, sender)
         else:
             seen = self._senders.check(claimed, msg.msg_id, now(), self._horizon)
             if seen:
@@ -201,7 +201,7 @@ class Reception:
         """Counts what the transport lost or refused, as ``transport.<reason>``."""
         self._drops.drop(f"transport.{reason}", "%s", detail)
 
-    def _refuse_stack(self, exc: StackMismatchError) -> None:
+    def _refuse_stack(self, exc: StackMismatchError, sender: RobotId) -> None:
         # Explained once per foreign stack, for the first few stacks only: random
         # datagrams carry random fingerprints and must not fill the log or memory.
         seen = self._mismatches_seen
@@ -215,7 +215,7 @@ class Reception:
                 "layers and the same registered messages (import the same message modules, or "
                 "pass the same messages=[...] to every Robot). "
                 "Further mismatches are counted and logged sparsely.",
-                exc.sender,
+                sender,  # as the transport knows it: the header's claim may be anyone's
                 describe_fingerprint(exc.theirs),
                 describe_fingerprint(exc.ours),
             )

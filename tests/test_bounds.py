@@ -79,11 +79,13 @@ def test_a_value_outside_its_bounds_is_refused_naming_the_field(
     assert caught.value.reason == "out_of_range"
 
 
-def test_a_long_list_with_one_bad_element_is_refused_in_msgspec_s_words() -> None:
-    path = [1.0] * 5000 + [math.inf]
+@pytest.mark.parametrize("bad", [math.inf, -math.inf, math.nan])
+def test_a_long_list_with_one_bad_element_is_refused_in_msgspec_s_words(bad: float) -> None:
+    path = [1.0] * 5000 + [bad]
     with pytest.raises(DecodeError, match=r"Sighting\.path\[5000\]") as caught:
         CODEC.decode(raw(0.0, 1.0, 1, path))
     assert caught.value.reason == "out_of_range"
+    assert str(caught.value).endswith("expected float(finite)")  # not "<= 1.79e308"
 
 
 @pytest.mark.parametrize(("msg_id", "corr_id"), [(-1, 0), (5, -1), (-(2**63), 0)])

@@ -197,7 +197,7 @@ async def test_hostile_datagrams_over_real_udp_are_dropped_and_counted(start_rob
         # Robot 3 is known, but the datagram comes from robot 2's address.
         "spoofed_sender": _raw_datagram(robot, *header(0, 0, sender=3), "spoof", []),
     }
-    # From an address the robot does not know, claiming a robot it does not know.
+    # From an address that is no robot's: refused before it is decoded.
     unknown = _raw_datagram(robot, *header(0, 0, sender=77), "who", [])
     host, port = robot.address
     transport.directory.add(3, "127.0.0.1", 9)  # never sent to
@@ -213,7 +213,7 @@ async def test_hostile_datagrams_over_real_udp_are_dropped_and_counted(start_rob
         sock.sendto(_raw_datagram(robot, *header(0, 0), "valid", [7]), (host, port))
     await wait_for(lambda: stack[0].external and sum(robot.dropped.values()) == len(hostile))
     expected = {reason: 1 for reason, data in hostile.items() if len(data) <= 65_507}
-    expected["unknown_sender"] = 1
+    expected["unknown_source"] = 1
     assert robot.dropped == expected
     assert [m.text for m in stack[0].external] == ["valid"]
 
@@ -223,7 +223,7 @@ async def test_oversize_datagrams_are_refused_by_the_memory_transport_too(start_
     stack = recorders(1)
     robot = await start_robot(1, stack, transport=transport)
     await start_robot(2, recorders(1), transport=transport)
-    transport.deliver(1, b"\x00" * 70_000)
+    transport.deliver(1, b"\x00" * 70_000, 2)
     assert robot.dropped == {"decode.oversize": 1}
 
 
@@ -320,11 +320,22 @@ async def test_a_flood_of_foreign_fingerprints_is_explained_a_few_times_only(
     tap = Tap()
     robot = await start_robot(1, recorders(1), transport=tap)
     for fingerprint in range(1000):
-        tap.deliver(1, msgpack.packb([fingerprint, 1, 1, 1, 2, 0, 0, 0]))
+        tap.deliver(1, msgpack.packb([fingerprint, 1, 1, 1, 2, 0, 0, 0]), 2)  # robot 2's
     explained = [r for r in caplog.records if "refusing datagrams" in r.getMessage()]
     assert len(explained) == 16
     assert robot.dropped == {"stack_mismatch": 1000}
     assert len(caplog.records) < 30
+
+
+async def test_a_foreign_stack_is_blamed_on_its_source_not_on_the_robot_it_claims(
+    start_robot, caplog
+) -> None:
+    tap = Tap()
+    robot = await start_robot(1, recorders(1), transport=tap)
+    tap.deliver(1, msgpack.packb([12345, 1, 1, 1, 2, 0, 0, 0]), 3)  # claims 2, comes from 3
+    (explained,) = [r.getMessage() for r in caplog.records if "refusing" in r.getMessage()]
+    assert "refusing datagrams from robot 3:" in explained
+    assert robot.dropped == {"stack_mismatch": 1}
 
 
 async def test_late_and_duplicate_replies_are_dropped_not_counted_as_received(start_robot) -> None:

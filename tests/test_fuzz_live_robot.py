@@ -58,7 +58,7 @@ DECODE = {f"decode.{reason}" for reason in DecodeError.REASONS} | {"stack_mismat
 # Outcomes each kind may have. The attacker's address is known (robot 99), so a
 # datagram claiming another robot is a spoof: `spoofed_sender` (claims the partner
 # or robot 12345) and `from_own_id` (claims the victim) are expected, never a hook.
-# `unknown_sender` would be the outcome of a claim of 12345 from an unknown address.
+# From an unknown address every kind would be `unknown_source`, refused undecoded.
 EXPECTED: Final[dict[str, set[str]]] = {
     "random_bytes": DECODE,
     "truncated": {"decode.malformed"},
@@ -70,7 +70,7 @@ EXPECTED: Final[dict[str, set[str]]] = {
     "huge_lengths": {"decode.malformed"},
     "wrong_fingerprint": {"stack_mismatch"},
     "wrong_level": {"cross_level", "no_such_layer"},
-    "spoofed_sender": {"from_own_id", "spoofed_sender", "unknown_sender"},
+    "spoofed_sender": {"from_own_id", "spoofed_sender"},
     "valid": {ACCEPTED},
 }
 

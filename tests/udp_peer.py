@@ -23,7 +23,7 @@ class Peer(Recorder):
 
     async def inner_process(self) -> None:
         await super().inner_process()
-        # Greet until robot 1 answers: it refuses datagrams from robot 2 (unknown_sender)
+        # Greet until robot 1 answers: it refuses datagrams from robot 2 (unknown_source)
         # until it has read this process's port and entered it in its directory.
         if not self.external:
             self.send(1, Note("hello from another process", [2]))

@@ -288,7 +288,8 @@ class ScenarioRun:
                 self._trace_csv.discard()  # the run ended by an exception: no trace
             self._close_progress(final=False)
             self._count_faults()  # read after the swarm closed its endpoints
-            self.result.wall_time = self._wall_clock() - self._started
+            if not self._ended:  # else measured when it ended: stopping is not the run's
+                self.result.wall_time = self._wall_clock() - self._started
 
     def _sample(self, t: float) -> None:
         if self._ended:

@@ -38,8 +38,10 @@ class DatagramSink(LossCounter, Protocol):
         """Called with each datagram for this robot, in arrival order.
 
         ``sender`` is the robot the transport knows the datagram came from (its
-        source address, or an authenticated id), ``None`` when it cannot tell. A
-        datagram whose header claims another robot is a spoof and is refused.
+        source address, or an authenticated id), ``None`` when it knows no robot
+        there. A datagram from ``None`` speaks for nobody and is refused undecoded
+        (``unknown_source``); one whose header claims another robot than
+        ``sender`` is a spoof (``spoofed_sender``).
         """
 
     def robot_joined(self, robot_id: RobotId) -> None:
@@ -89,11 +91,7 @@ class Endpoint(ABC):
 
     @abstractmethod
     def knows(self, robot_id: RobotId) -> bool:
-        """Whether this endpoint can send to ``robot_id``.
-
-        A datagram claiming to come from a robot the endpoint cannot answer is
-        refused (``unknown_sender``): a reply to it could only fail.
-        """
+        """Whether this endpoint can send to ``robot_id`` (see ``Layer.knows``)."""
 
     @abstractmethod
     def close(self) -> None:
