@@ -454,6 +454,35 @@ def test_the_claimed_sender_must_be_the_one_the_transport_names(
         assert (handled, dropped) == (0, {outcome: 1})
 
 
+def test_forged_requests_are_not_reflected_and_do_not_silence_the_robot_they_claim() -> None:
+    """Issue 16: 200,000 forged requests claiming swarm robots made 197,853 replies to
+    them, and the robots' real messages were then refused as stale."""
+
+    async def main() -> tuple[dict[int, int], dict[str, int], list[int]]:
+        clock, tap = VirtualClock(), Tap()
+        answerer, claimed = Recorder(), Recorder()
+        robots = [robot(1, answerer, tap, clock), robot(2, claimed, tap, clock)]
+        robots.append(robot(3, Recorder(), tap, clock))
+        async with Swarm(robots):
+            before = {r: len(tap.received[r]) for r in (2, 3)}
+            for k in range(500):  # claiming robot 2, ids no honest robot has used yet
+                request = Query(k)
+                request.msg_type = MsgType.NEGOTIATION
+                forged = encoded(request, claims=2, msg_id=2**62 + k)
+                tap.deliver(1, forged, 3)  # from robot 3's address
+                tap.deliver(1, forged, None)  # from an address that is no robot's
+            await clock.sleep(1.0)
+            replies = {r: len(tap.received[r]) - before[r] for r in (2, 3)}
+            answer = await claimed.request(1, Query(21), timeout=1.0)  # robot 2, for real
+            assert isinstance(answer, Answer)
+        return replies, robots[0].dropped, [m.value for m in answerer.external]
+
+    replies, dropped, handled = cas_async.run(main(), virtual=True)
+    assert replies == {2: 0, 3: 0}  # nobody was sent a reply to a forgery
+    assert dropped == {"spoofed_sender": 500, "unknown_source": 500}
+    assert handled == [21]  # and robot 2's real request was not stale
+
+
 def test_a_refused_datagram_does_not_mark_its_id_as_seen() -> None:
     async def main() -> tuple[int, dict[str, int], float | None]:
         clock, tap = VirtualClock(), Tap()

@@ -9,7 +9,9 @@ every datagram, decoded, to a *rule*, which returns what the wire does with it:
 * :data:`DELIVER` (or ``None``): sent at once;
 * :data:`DROP`: lost;
 * :class:`Hold`: kept back until its ``until(now)`` is true (checked before every
-  datagram sent, and every tenth of a simulated second), then sent.
+  datagram sent, and every tenth of a simulated second), then sent;
+* :class:`Replace`: other bytes are sent instead (what a compromised robot, or
+  anyone at its address, could send).
 
 Rules see the message with its header (sender, ``msg_type``, ``corr_id``) and the
 receiver, and keep whatever state they need (``deal`` numbers tie a partnership's
@@ -37,7 +39,17 @@ from cas_async.sim import Environment, ItemEventKind
 from cas_async.transport import Codec, DatagramSink, Endpoint, MemoryTransport, Transport
 from tests.fire_brigade.helpers import VIRTUAL
 
-__all__ = ["DELIVER", "DROP", "Censor", "Hold", "Outcome", "Rule", "Verdict", "run_censored"]
+__all__ = [
+    "DELIVER",
+    "DROP",
+    "Censor",
+    "Hold",
+    "Outcome",
+    "Replace",
+    "Rule",
+    "Verdict",
+    "run_censored",
+]
 
 _FIRE_BRIGADE_LAYERS: Final = 5
 
@@ -58,7 +70,14 @@ class Hold:
     until: Callable[[float], bool]
 
 
-Verdict = _Fate | Hold | None
+@dataclass(frozen=True)
+class Replace:
+    """Send ``data`` in place of the datagram."""
+
+    data: bytes
+
+
+Verdict = _Fate | Hold | Replace | None
 Rule = Callable[[float, int, Message], Verdict]
 """``rule(now, receiver, message) -> verdict``; the sender is ``message.robot_id``."""
 
@@ -89,6 +108,7 @@ class Censor(Transport):
         self._held: list[_Held] = []
         self.dropped = 0
         self.held = 0
+        self.replaced = 0
 
     async def open(self, robot_id: int, sink: DatagramSink) -> Endpoint:
         return _CensoredEndpoint(self, await self._inner.open(robot_id, sink))
@@ -102,6 +122,9 @@ class Censor(Transport):
         elif isinstance(verdict, Hold):
             self.held += 1
             self._held.append(_Held(endpoint, receiver, data, verdict.until))
+        elif isinstance(verdict, Replace):
+            self.replaced += 1
+            endpoint.deliver(receiver, verdict.data)
         else:
             endpoint.deliver(receiver, data)
 
@@ -160,6 +183,9 @@ class Outcome:
     audits: int = 0
     dropped: int = 0
     held: int = 0
+    replaced: int = 0
+    refused: dict[int, dict[str, int]] = field(default_factory=dict)
+    """What each robot's runtime dropped, by reason (``robot.dropped``)."""
     environment: Environment | None = None
 
 
@@ -212,7 +238,12 @@ def run_censored(
                 with contextlib.suppress(asyncio.CancelledError):
                     await running
         outcome.delivered, outcome.ended_at = ledger.retired, clock.now()
-        outcome.dropped, outcome.held = censor.dropped, censor.held
+        outcome.dropped, outcome.held, outcome.replaced = (
+            censor.dropped,
+            censor.held,
+            censor.replaced,
+        )
+        outcome.refused = {robot.robot_id: dict(robot.dropped) for robot in mission.robots}
         return outcome
 
     outcome: Outcome = cas_async.run(censored(), virtual=True)

@@ -11,14 +11,31 @@ and that every bucket was still delivered.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import pytest
 
-from apps.fire_brigade.messages import ChangeStatus, Handover, Meet, Meeting, RequestPartner
+from apps.fire_brigade.messages import (
+    MESSAGES,
+    ChangeStatus,
+    Handover,
+    Meet,
+    Meeting,
+    RequestPartner,
+)
 from apps.fire_brigade.strategy import Strategy
 from cas_async import Message, MsgType
-from tests.fire_brigade.censor import DELIVER, DROP, Hold, Outcome, Verdict, run_censored
+from cas_async.transport import Codec
+from tests.fire_brigade.censor import (
+    DELIVER,
+    DROP,
+    Hold,
+    Outcome,
+    Replace,
+    Verdict,
+    run_censored,
+)
 from tests.fire_brigade.helpers import SCENARIOS
 
 SCENARIO = SCENARIOS / "thesis_5_8_1.toml"
@@ -213,4 +230,51 @@ def test_a_meet_of_an_earlier_partnership_is_refused(caplog: pytest.LogCaptureFi
     assert logged(caplog, f"robot {rule.sink} did not agree to meet")  # the first deal
     assert rule.later_deal is not None, "the giver never partnered with that Sink again"
     assert rule.refused, "the earlier deal's Meet was not refused"
+    assert_every_bucket_delivered(outcome)
+
+
+@dataclass
+class PoisonedMeet:
+    """The first ``Meet`` a giver sends arrives with other values: its retries are true.
+
+    Message ids stay the giver's, so the runtime takes the poisoned copy for the real
+    one: only the receiver's checks stand between the values and its layers.
+    """
+
+    x: float
+    speed: float
+    codec: Codec = field(default_factory=lambda: Codec.for_stack(5, MESSAGES))
+    receiver: int = -1
+
+    def __call__(self, _now: float, receiver: int, msg: Message) -> Verdict:
+        if isinstance(msg, Meet) and msg.msg_type == MsgType.NEGOTIATION and self.receiver < 0:
+            self.receiver = receiver
+            poisoned = Meet(self.x, msg.y, msg.kind, self.speed, deal=msg.deal)
+            poisoned.msg_type = msg.msg_type
+            poisoned.msg_id, poisoned.robot_id = msg.msg_id, msg.robot_id
+            poisoned.src_layer, poisoned.dst_layer = msg.src_layer, msg.dst_layer
+            return Replace(self.codec.encode(poisoned))
+        return DELIVER
+
+
+@pytest.mark.parametrize(("speed", "refused"), [(math.nan, 1), (math.inf, 1), (-1.0, 1)])
+def test_a_meet_with_an_impossible_speed_is_refused_by_the_decoder(
+    speed: float, refused: int
+) -> None:
+    # Issue 16: such a Meet made Group Activity raise, and the whole run failed.
+    rule = PoisonedMeet(x=1.0, speed=speed)
+    outcome = run_censored(SCENARIO, rule)
+    assert outcome.replaced == 1
+    assert outcome.refused[rule.receiver].get("decode.out_of_range") == refused
+    assert_every_bucket_delivered(outcome)  # the giver asked again, and was answered
+
+
+def test_a_meet_from_outside_the_world_is_denied_by_the_layer(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    rule = PoisonedMeet(x=1e9, speed=1.0)  # finite, so the decoder lets it through
+    outcome = run_censored(SCENARIO, rule)
+    assert outcome.replaced == 1
+    assert logged(caplog, f"robot {rule.receiver} GroupActivity(L2): ignored Meet")
+    assert logged(caplog, "a position outside the world")
     assert_every_bucket_delivered(outcome)
