@@ -26,6 +26,7 @@ back.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from typing import Final
 
@@ -178,38 +179,51 @@ class ReplyCache:
         budget: most bytes kept (replies plus a fixed overhead per reply).
     """
 
-    __slots__ = ("_budget", "_bytes", "_keep_for", "_replies")
+    __slots__ = ("_budget", "_bytes", "_keep_for", "_order", "_replies", "_serial")
 
     OVERHEAD: Final = 200
     """Bytes a kept reply costs besides its own (key, entry, dictionary slot), roughly."""
 
     def __init__(self, keep_for: float = 60.0, budget: int = 1 << 20) -> None:
-        self._replies: dict[tuple[RobotId, int], tuple[float, bytes]] = {}  # oldest first
+        # (asker, request) -> (serial, kept at, reply); and the same in the order kept:
+        # (kept at, serial, key). Evicting from the front of a deque costs the same
+        # however many went before; from the front of a dict, iterating over the
+        # holes its deletions left (7x slower once the budget is reached).
+        self._replies: dict[tuple[RobotId, int], tuple[int, float, bytes]] = {}
+        self._order: deque[tuple[float, int, tuple[RobotId, int]]] = deque()
+        self._serial = 0
         self._keep_for = keep_for
         self._budget = budget
         self._bytes = 0
 
     def keep(self, asker: RobotId, request_id: int, data: bytes, now: float) -> None:
         """Remembers ``data`` as the reply sent at ``now`` to ``asker``'s request ``request_id``."""
-        replies = self._replies
-        old = replies.pop((asker, request_id), None)
-        if old is not None:
-            self._bytes -= _cost(old[1])
-        replies[(asker, request_id)] = (now, data)
+        replies, order = self._replies, self._order
+        key = (asker, request_id)
+        old = replies.get(key)
+        if old is not None:  # kept again: its earlier place in the order stays till it expires
+            self._bytes -= _cost(old[2]) - ReplyCache.OVERHEAD
+        self._serial = serial = self._serial + 1
+        replies[key] = (serial, now, data)
+        order.append((now, serial, key))
         self._bytes += _cost(data)
         oldest = now - self._keep_for
-        while replies:
-            key = next(iter(replies))
-            at, kept = replies[key]
+        while order:
+            at, kept_serial, kept_key = order[0]
             if at > oldest and self._bytes <= self._budget:
                 break
-            del replies[key]
-            self._bytes -= _cost(kept)
+            order.popleft()
+            entry = replies.get(kept_key)
+            if entry is not None and entry[0] == kept_serial:  # not kept again since
+                del replies[kept_key]
+                self._bytes -= _cost(entry[2])
+            else:  # the place of a reply kept again later
+                self._bytes -= ReplyCache.OVERHEAD
 
     def get(self, asker: RobotId, request_id: int) -> bytes | None:
         """The reply sent to that request, if still kept."""
         entry = self._replies.get((asker, request_id))
-        return None if entry is None else entry[1]
+        return None if entry is None else entry[2]
 
     @property
     def size(self) -> int:

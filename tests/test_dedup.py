@@ -210,11 +210,18 @@ def test_reply_cache_stays_within_its_budget_oldest_first() -> None:
     assert [cache.get(r % 7, r) is not None for r in (989, 990, 999)] == [False, True, True]
 
 
-def test_reply_cache_counts_a_reply_kept_again_once() -> None:
-    cache = ReplyCache()
+def test_reply_cache_counts_a_reply_kept_again_once_and_its_old_place_until_it_expires() -> None:
+    cache = ReplyCache(keep_for=60.0)
     cache.keep(1, 1, b"abc", 0.0)
     cache.keep(1, 1, b"abcdef", 1.0)
-    assert (len(cache), cache.size) == (1, 6 + ReplyCache.OVERHEAD)
+    assert (len(cache), cache.get(1, 1)) == (1, b"abcdef")
+    assert cache.size == 6 + 2 * ReplyCache.OVERHEAD  # the first place, not its bytes
+    cache.keep(2, 1, b"x", 60.5)  # the first place expires; the reply kept again does not
+    assert (len(cache), cache.get(1, 1)) == (2, b"abcdef")
+    assert cache.size == 6 + 1 + 2 * ReplyCache.OVERHEAD
+    cache.keep(2, 2, b"y", 61.5)
+    assert (len(cache), cache.get(1, 1)) == (2, None)
+    assert cache.size == 2 + 2 * ReplyCache.OVERHEAD
 
 
 # -- the horizon of message ids -----------------------------------------------------------
