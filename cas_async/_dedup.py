@@ -198,16 +198,23 @@ class ReplyCache:
 
     def keep(self, asker: RobotId, request_id: int, data: bytes, now: float) -> None:
         """Remembers ``data`` as the reply sent at ``now`` to ``asker``'s request ``request_id``."""
-        replies, order = self._replies, self._order
+        replies = self._replies
         key = (asker, request_id)
         old = replies.get(key)
         if old is not None:  # kept again: its earlier place in the order stays till it expires
             self._bytes -= _cost(old[2]) - ReplyCache.OVERHEAD
         self._serial = serial = self._serial + 1
         replies[key] = (serial, now, data)
+        order = self._order
         order.append((now, serial, key))
-        self._bytes += _cost(data)
-        oldest = now - self._keep_for
+        # _cost(data), inline: this runs for every reply a robot sends
+        self._bytes += (len(data) if data.__class__ is bytes else 0) + ReplyCache.OVERHEAD
+        if self._bytes > self._budget or order[0][0] <= now - self._keep_for:
+            self._evict(now - self._keep_for)
+
+    def _evict(self, oldest: float) -> None:
+        """Forgets the replies kept at ``oldest`` or before, then the oldest until in budget."""
+        replies, order = self._replies, self._order
         while order:
             at, kept_serial, kept_key = order[0]
             if at > oldest and self._bytes <= self._budget:
