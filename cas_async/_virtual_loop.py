@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import asyncio
 import selectors
-from typing import Any
+from typing import Any, Final
 
 __all__ = ["VirtualTimeLoop"]
 
@@ -44,7 +44,11 @@ class _JumpingSelector(selectors.BaseSelector):
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         ready = self._inner.select(0)
         if ready or (timeout is not None and timeout <= 0):
+            self._loop.busy_pass()
             return ready
+        # Idle: nothing to run before the next timer or I/O.
+        if self._loop.wake_idle_waiters():  # they look first; time moves after
+            return []
         if timeout is None:  # no timer at all: only another thread can wake us
             return self._inner.select(None)
         self._loop.advance(timeout)
@@ -65,7 +69,50 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
 
     def __init__(self) -> None:
         self._virtual_now = 0.0
+        self._idle_waiters: list[asyncio.Future[None]] = []
+        self._busy_passes = 0
         super().__init__(_JumpingSelector(selectors.DefaultSelector(), self))
+
+    IDLE_PATIENCE: Final = 100_000
+    """Busy passes after which :meth:`idle`'s futures fail: a task that never waits."""
+
+    def idle(self) -> asyncio.Future[None]:
+        """A future done once the loop is idle: every task waits for a timer, I/O or a thread.
+
+        Nothing is ready to run and no timer is due: what happens next needs time
+        to pass. The future is done before time moves on (a test can look at what
+        everything did at this instant). It fails with :class:`RuntimeError` when
+        the loop stays busy for :attr:`IDLE_PATIENCE` passes.
+        """
+        if not self._idle_waiters:
+            self._busy_passes = 0
+        future = self.create_future()
+        self._idle_waiters.append(future)
+        return future
+
+    def busy_pass(self) -> None:
+        """The selector saw work to do (called each busy pass); fails idle waiters past patience."""
+        if not self._idle_waiters:
+            return
+        self._busy_passes += 1
+        if self._busy_passes >= self.IDLE_PATIENCE:
+            waiters, self._idle_waiters = self._idle_waiters, []
+            for future in waiters:
+                if not future.done():
+                    future.set_exception(
+                        RuntimeError(
+                            f"the loop is still busy after {self.IDLE_PATIENCE} passes: "
+                            "a task never waits"
+                        )
+                    )
+
+    def wake_idle_waiters(self) -> bool:
+        """Completes the futures of :meth:`idle` (the loop is idle); whether there were any."""
+        waiters = [future for future in self._idle_waiters if not future.done()]
+        self._idle_waiters.clear()
+        for future in waiters:
+            future.set_result(None)
+        return bool(waiters)
 
     def time(self) -> float:
         """The virtual time, in seconds."""

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 from collections.abc import AsyncIterator, Callable, Sequence
 from contextlib import AsyncExitStack
 from typing import Any
@@ -36,12 +35,6 @@ async def start_robot() -> AsyncIterator[Callable[..., object]]:
 @pytest.fixture
 def memory() -> MemoryTransport:
     return MemoryTransport()
-
-
-async def settle(rounds: int = 20) -> None:
-    """Lets queued callbacks and layer tasks run (no real waiting)."""
-    for _ in range(rounds):
-        await asyncio.sleep(0)
 
 
 @pytest.fixture

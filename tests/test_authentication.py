@@ -24,8 +24,8 @@ from cas_async import (
     UdpTransport,
     UnknownRobotError,
 )
+from cas_async.testing import wait_all_tasks_blocked
 from cas_async.transport import DatagramSink, Endpoint
-from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, recorders
 
 TRAILER_SIZE = AuthenticatedTransport.TRAILER_SIZE
@@ -140,7 +140,7 @@ async def test_robots_with_the_same_key_exchange_requests_and_replies(
     robot_b = await start_robot(2, b, transport=transport)
     reply = await a[1].request(2, Query(21), timeout=5)
     a[0].send(2, Note("hello", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert isinstance(reply, Answer)
     assert (reply.value, reply.robot_id, reply.msg_type) == (42, 2, MsgType.ACCEPT)
     assert [m.text for m in b[0].external] == ["hello"]
@@ -175,7 +175,7 @@ async def test_the_trailer_is_the_documented_wire_format(
     await _open(endpoints, transport, 9, sink)
     sender.send(9, b"payload")
     sender.send(9, b"payload")  # every send takes a fresh counter
-    await settle()
+    await wait_all_tasks_blocked()
     assert [data for _, _, data in tap.sent] == [
         sign(b"payload", -7, 1001, 9),
         sign(b"payload", -7, 1002, 9),
@@ -241,7 +241,7 @@ async def test_an_exhausted_counter_says_so(
     sender.send(2, b"last")
     with pytest.raises(RobotStateError, match="robot 1: the authentication counter is exhausted"):
         sender.send(2, b"one too many")
-    await settle()
+    await wait_all_tasks_blocked()
     assert sink.received == [(b"last", 1)]
 
 
@@ -257,7 +257,7 @@ async def test_a_robot_with_another_key_is_refused_as_forged(
     robot_b = await start_robot(2, b, transport=ours)
     a[0].send(2, Note("let me in", []))
     b[0].send(1, Note("nor me", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert not a[0].external
     assert not b[0].external
     assert robot_a.dropped == robot_b.dropped == {"transport.auth.forged": 1}
@@ -273,7 +273,7 @@ async def test_a_robot_without_a_key_is_refused_and_refuses(
     robot_b = await start_robot(2, b, transport=memory)
     a[0].send(2, Note("signed", []))
     b[0].send(1, Note("unsigned", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert not a[0].external
     assert not b[0].external
     assert robot_a.dropped == {"transport.auth.forged": 1}
@@ -297,7 +297,7 @@ async def test_an_altered_datagram_is_refused_as_forged(
     datagram[index] ^= 0x01
     attacker.send(2, bytes(datagram))
     attacker.send(2, sign(b"some payload", 1, 500, 2))  # the original still verifies
-    await settle()
+    await wait_all_tasks_blocked()
     assert sink.reasons == ["auth.forged"]
     assert "from the address of robot 66 does not verify" in sink.dropped[0][1]
     assert sink.received == [(b"some payload", 1)]
@@ -312,7 +312,7 @@ async def test_a_datagram_shorter_than_the_trailer_is_refused(
     await _open(endpoints, transport, 2, sink)
     attacker = await _open(endpoints, memory, 66, RecordingSink())
     attacker.send(2, sign(b"", 1, 5, 2)[:size])
-    await settle()
+    await wait_all_tasks_blocked()
     assert sink.reasons == ["auth.too_short"]
     assert transport.stats["auth.too_short"] == 1
 
@@ -326,7 +326,7 @@ async def test_a_truncated_datagram_is_refused_as_forged(
     await _open(endpoints, transport, 2, sink)
     attacker = await _open(endpoints, memory, 66, RecordingSink())
     attacker.send(2, sign(b"a payload long enough", 1, 5, 2)[:-cut])
-    await settle()
+    await wait_all_tasks_blocked()
     assert sink.reasons == ["auth.forged"]
     assert not sink.received
 
@@ -343,12 +343,12 @@ async def test_a_recorded_datagram_sent_again_is_refused_as_replay(
     await start_robot(1, a, transport=transport)
     robot_b = await start_robot(2, b, transport=transport)
     a[0].send(2, Note("once", []))
-    await settle()
+    await wait_all_tasks_blocked()
     ((_, _, recorded),) = tap.sent
     attacker = await _open(endpoints, memory, 66, RecordingSink())
     attacker.send(2, recorded)
     attacker.send(2, recorded)
-    await settle()
+    await wait_all_tasks_blocked()
     assert [m.text for m in b[0].external] == ["once"]
     assert robot_b.dropped == {"transport.auth.replay": 2}
 
@@ -363,12 +363,12 @@ async def test_a_datagram_for_one_robot_does_not_verify_at_another(
     await start_robot(2, b, transport=transport)
     robot_c = await start_robot(3, c, transport=transport)
     a[0].send(2, Note("for 2 only", []))
-    await settle()
+    await wait_all_tasks_blocked()
     ((_, _, recorded),) = tap.sent
     attacker = await _open(endpoints, memory, 66, RecordingSink())
     attacker.send(3, recorded)  # robot 3 never saw counter: only the tag can tell
     attacker.send(1, recorded)  # nor is it accepted back at its sender
-    await settle()
+    await wait_all_tasks_blocked()
     assert not c[0].external
     assert not a[0].external
     assert robot_c.dropped == {"transport.auth.forged": 1}
@@ -399,7 +399,7 @@ async def test_reordering_within_the_window_is_accepted_and_older_is_stale(
     ]
     for counter, _ in order:
         attacker.send(2, sign(counter.to_bytes(4, "big"), 1, counter, 2))
-    await settle()
+    await wait_all_tasks_blocked()
     accepted = [int.from_bytes(data, "big") for data, _ in sink.received]
     assert accepted == [counter for counter, refusal in order if refusal is None]
     assert sink.reasons == [refusal for _, refusal in order if refusal is not None]
@@ -416,7 +416,7 @@ async def test_a_jump_far_ahead_forgets_the_window(
     top = 2**64 - 1
     for counter in (10, top, top - 1, 10, top - WINDOW):
         attacker.send(2, sign(b"", 1, counter, 2))
-    await settle()
+    await wait_all_tasks_blocked()
     assert len(sink.received) == 3  # 10, the top and the one just below it
     assert sink.reasons == ["auth.stale", "auth.stale"]
 
@@ -431,7 +431,7 @@ async def test_a_restarted_robot_is_accepted(start_robot, memory: MemoryTranspor
         a = recorders(1)
         async with Robot(1, a, transport=transport, messages=STACK_MESSAGES):
             a[0].send(2, Note(text, []))
-            await settle()
+            await wait_all_tasks_blocked()
     assert [m.text for m in b[0].external] == ["before", "after"]
     assert robot_b.dropped == {}
 
@@ -447,7 +447,7 @@ async def test_a_restart_that_counts_from_below_is_taken_for_a_replay(
         sender = await transport.open(1, RecordingSink())
         sender.send(2, b"hi")
         sender.close()
-    await settle()
+    await wait_all_tasks_blocked()
     assert sink.received == [(b"hi", 1)]
     assert sink.reasons == ["auth.replay"]
 
@@ -462,13 +462,13 @@ async def test_a_key_holder_cannot_claim_another_robots_id_in_the_header(
     robot_b = await start_robot(2, b, transport=transport)
     await start_robot(3, recorders(1), transport=transport)
     a[0].send(2, Note("from 1", []))
-    await settle()
+    await wait_all_tasks_blocked()
     ((_, _, recorded),) = tap.sent
     # Robot 3 holds the key and re-signs robot 1's message as its own.
     payload = recorded[:-TRAILER_SIZE]
     attacker = await _open(endpoints, memory, 66, RecordingSink())
     attacker.send(2, sign(payload, 3, 10**18, 2))
-    await settle()
+    await wait_all_tasks_blocked()
     assert [m.text for m in b[0].external] == ["from 1"]
     assert robot_b.dropped == {"spoofed_sender": 1}
 
@@ -490,7 +490,7 @@ async def test_forged_datagrams_do_not_take_places_in_the_sender_table(
     for claimed in range(100, 1100):
         attacker.send(2, sign(b"forged", claimed, 1, 2, key=OTHER_KEY))
     attacker.send(2, recorded)
-    await settle(50)
+    await wait_all_tasks_blocked()
     assert sink.received == [(b"genuine", 1)]
     assert transport.stats["auth.forged"] == 1000
     assert sink.reasons[-1] == "auth.replay"
@@ -507,7 +507,7 @@ async def test_the_least_recently_heard_sender_is_forgotten_beyond_the_bound(
         attacker.send(2, sign(b"", sender, counter, 2))
     attacker.send(2, sign(b"", 1, 11, 2))  # still tracked: a replay
     attacker.send(2, sign(b"", 3, 10, 2))  # forgotten: taken as new (documented limit)
-    await settle()
+    await wait_all_tasks_blocked()
     assert [sender for _, sender in sink.received] == [1, 3, 1, 4, 3]
     assert sink.reasons == ["auth.replay"]
 

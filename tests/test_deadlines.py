@@ -7,7 +7,7 @@ import asyncio
 import cas_async
 from cas_async import Message, RequestTimeout, Robot, VirtualClock
 from cas_async._deadlines import Deadlines
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Query, Recorder
 
 
@@ -80,7 +80,7 @@ def test_an_infinite_timeout_waits_as_long_as_it_takes_and_arms_no_timer() -> No
         robot = Robot(1, [asker, Slow()], clock=clock, messages=STACK_MESSAGES)
         async with robot:
             pending = asyncio.ensure_future(asker.request_down(Query(4), timeout=float("inf")))
-            await settle()
+            await wait_all_tasks_blocked()
             loop = asyncio.get_running_loop()
             assert isinstance(loop, cas_async.VirtualTimeLoop)
             armed = loop.timer_deadlines()

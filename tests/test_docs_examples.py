@@ -12,6 +12,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
+pytest_plugins = ["pytester"]
+
 
 def _run(args: list[str]) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
@@ -84,3 +86,16 @@ def test_readme_main_job_runs_as_written(tmp_path: Path) -> None:
     assert "20 of 20" in result.stdout
     assert "completed" in result.stdout
     assert {p.name for p in tmp_path.iterdir()} >= {"results.json", "trace.csv"}
+
+
+def test_readme_testing_example_passes_in_a_project_without_conftest(
+    pytester: pytest.Pytester,
+) -> None:
+    """What a user's project that only installed cas_async gets: no conftest, no settings."""
+    readme = (ROOT / "README.md").read_text()
+    match = re.search(r"## Testing your layers\n.*?```python\n(.*?)```", readme, re.S)
+    assert match, "README lost its testing example"
+    pytester.makepyfile(test_readme=match.group(1))
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-v", "--durations=0")
+    result.assert_outcomes(passed=2)
+    result.stdout.fnmatch_lines(["*test_an_hour_of_beacons PASSED*"])

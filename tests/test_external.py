@@ -23,8 +23,8 @@ from cas_async import (
     message,
     spec_of,
 )
+from cas_async.testing import wait_all_tasks_blocked
 from cas_async.transport import Codec
-from tests.conftest import settle
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
 from tests.taps import Tap
 
@@ -89,7 +89,7 @@ async def test_request_to_a_silent_robot_times_out_and_the_late_reply_is_dropped
     with pytest.raises(RequestTimeout, match=r"no reply from robot 2 to Query #\d+ within 0.01 s"):
         await a[0].request(2, Query(1), timeout=0.01)
     b[0].reply(b[0].pending, Answer(2, 0))
-    await settle()
+    await wait_all_tasks_blocked()
     assert robot_a.dropped == {"late_reply": 1}
     assert not a[0].external
 
@@ -106,10 +106,10 @@ async def test_reply_from_another_robot_is_refused(start_robot) -> None:
     await start_robot(2, b, transport=transport)
     await start_robot(3, c, transport=transport)
     asking = asyncio.create_task(a[0].request(2, Query(1), timeout=1))
-    await settle()
+    await wait_all_tasks_blocked()
     (question,) = b[0].external
     c[0].reply(question, Answer(666, 0))  # robot 3 answers a question put to robot 2
-    await settle()
+    await wait_all_tasks_blocked()
     assert robot_a.dropped == {"reply_from_wrong_place": 1}
     assert not asking.done()
     b[0].reply(question, Answer(2, 0))
@@ -162,7 +162,7 @@ async def test_stack_mismatch_is_refused_counted_and_logged_once(
     await start_robot(2, theirs, transport=transport, messages=their_messages)
     for _ in range(3):
         theirs[0].send(1, Note("hi", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert not ours[0].external
     assert robot.dropped == {"stack_mismatch": 3}
     refusals = [r for r in caplog.records if "refusing datagrams from robot 2" in r.getMessage()]
@@ -238,10 +238,10 @@ async def test_full_inbox_drops_external_messages(start_robot) -> None:
     sender = recorders(1)
     await start_robot(2, sender, transport=transport)
     sender[0].send(1, Note("first", []))
-    await settle()  # the layer is now stuck handling "first"
+    await wait_all_tasks_blocked()  # the layer is now stuck handling "first"
     for i in range(10):
         sender[0].send(1, Note(str(i), []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert receiver.dropped == {"queue_full": 5}  # five wait in the inbox, five were refused
     assert receiver.inbox_sizes()[0] == 5
 
@@ -301,12 +301,12 @@ async def test_another_robot_cannot_answer_an_internal_request(start_robot) -> N
     robot = await start_robot(1, stack, transport=network)
     await start_robot(2, recorders(2), transport=network)
     asking = asyncio.create_task(stack[0].request_down(Query(1), timeout=5))
-    await settle()
+    await wait_all_tasks_blocked()
     (question,) = stack[1].negotiations
     forged = Answer(666, 0)  # robot 2 guesses the id of robot 1's internal request
     forged.msg_id, forged.robot_id, forged.corr_id = 7, 2, question.msg_id
     network.deliver(1, Codec.for_stack(2, STACK_MESSAGES).encode(forged), 2)  # from robot 2
-    await settle()
+    await wait_all_tasks_blocked()
     assert not asking.done()
     assert robot.dropped == {"reply_from_wrong_place": 1}
     asking.cancel()
@@ -349,14 +349,14 @@ async def test_late_and_duplicate_replies_are_dropped_not_counted_as_received(st
     robot = await start_robot(1, asker, transport=transport)
     await start_robot(2, answerer, transport=transport)
     asking = asyncio.create_task(asker[0].request(2, Query(1), timeout=5))
-    await settle()
+    await wait_all_tasks_blocked()
     (question,) = answerer[0].external
     answerer[0].reply(question, Answer(2, 0))
     answerer[0].reply(question, Answer(2, 0))  # the same answer twice
     assert (await asking).value == 2
-    await settle()
+    await wait_all_tasks_blocked()
     answerer[0].reply(question, Answer(2, 0))  # and once more, later
-    await settle()
+    await wait_all_tasks_blocked()
     assert robot.dropped == {"duplicate_reply": 2}
     assert asker[0].counters.received_external == 1
     assert not asker[0].external

@@ -17,7 +17,7 @@ from cas_async import (
     RuleViolation,
     VirtualClock,
 )
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
 
 
@@ -45,7 +45,7 @@ async def test_forwarding_across_five_layers_both_ways(start_robot) -> None:
     robot = await start_robot(1, stack)
     stack[0].send_to_layer(4, Note("down", []))
     stack[4].send_to_layer(0, Note("up", []))
-    await settle()
+    await wait_all_tasks_blocked()
     (down,) = stack[4].internal
     (up,) = stack[0].internal
     assert (down.text, down.src_layer, down.dst_layer) == ("down", 0, 4)
@@ -61,7 +61,7 @@ async def test_neighbour_sends_reach_store_intra_msg(start_robot) -> None:
     await start_robot(1, stack)
     stack[1].send_up(Note("to top", []))
     stack[1].send_down(Note("to bottom", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert [m.text for m in stack[0].internal] == ["to top"]
     assert [m.text for m in stack[2].internal] == ["to bottom"]
     assert stack[0].internal[0].msg_type == MsgType.ACCEPT
@@ -81,7 +81,7 @@ async def test_negotiation_across_non_neighbours_is_answered_automatically(start
     stack = recorders(4)
     await start_robot(1, stack)
     stack[0].send_to_layer(3, Query(21, msg_type=MsgType.NEGOTIATION))
-    await settle()
+    await wait_all_tasks_blocked()
     (question,) = stack[3].negotiations
     assert not stack[3].internal  # a NEGOTIATION goes to get_intra_msg_reply only
     (reply,) = stack[0].internal
@@ -127,7 +127,7 @@ async def test_request_works_while_the_asking_layer_is_busy_in_a_hook(start_robo
     stack = [Asker(), Recorder(), Recorder()]
     await start_robot(1, stack)
     stack[1].send_up(Note("go", []))
-    await settle(50)
+    await wait_all_tasks_blocked()
     assert stack[0].answer.value == 8
 
 
@@ -163,7 +163,7 @@ async def test_internal_rule_violations_are_dropped_and_counted(
     stack[(sender + 1) % 3].send_to_layer(
         sender, Note("wake", [])
     )  # runs the sender's inner_process
-    await settle()
+    await wait_all_tasks_blocked()
     assert robot.dropped == {reason: 1}
     assert robot.counters()[f"dropped.{reason}"] == 1
     assert all(m.text != "bad" for layer in stack for m in layer.internal)
@@ -175,7 +175,7 @@ async def test_external_send_to_own_robot_is_a_violation(start_robot, memory) ->
     stack = recorders(2)
     robot = await start_robot(1, stack, transport=memory)
     stack[0].send(1, Note("me", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert robot.dropped == {"to_own_robot": 1}
     assert not stack[0].external
 
@@ -183,24 +183,24 @@ async def test_external_send_to_own_robot_is_a_violation(start_robot, memory) ->
 async def test_inner_process_runs_at_start_and_after_each_batch(start_robot) -> None:
     stack = recorders(2)
     await start_robot(1, stack)
-    await settle()
+    await wait_all_tasks_blocked()
     assert stack[1].inner_calls == 1
     for i in range(5):  # one burst: delivered as one batch
         stack[0].send_down(Note(str(i), []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert stack[1].inner_calls == 2
     assert [m.text for m in stack[1].internal] == ["0", "1", "2", "3", "4"]
     stack[0].send_down(Note("again", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert stack[1].inner_calls == 3
 
 
 async def test_forwarding_does_not_wake_the_intermediate_layer(start_robot) -> None:
     stack = recorders(3)
     await start_robot(1, stack)
-    await settle()
+    await wait_all_tasks_blocked()
     stack[0].send_to_layer(2, Note("through", []))
-    await settle()
+    await wait_all_tasks_blocked()
     assert stack[1].inner_calls == 1  # only the start-up call
     assert stack[2].inner_calls == 2
 
@@ -232,7 +232,7 @@ async def test_reusing_a_message_object_delivers_each_send_to_its_own_layer(star
     note = Note("twice", [])
     stack[1].send_up(note)
     stack[1].send_down(note)  # still travelling upwards: a copy goes down
-    await settle()
+    await wait_all_tasks_blocked()
     assert [m.text for m in stack[0].internal] == ["twice"]
     assert [m.text for m in stack[2].internal] == ["twice"]
     assert robot.counters()["forwarded"] == 0

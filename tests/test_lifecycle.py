@@ -17,7 +17,7 @@ from cas_async import (
     RobotState,
     RobotStateError,
 )
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Note, Query, Recorder, recorders
 
 
@@ -58,7 +58,7 @@ async def test_failure_surfaces_on_leaving_the_block_when_run_was_not_awaited() 
     robot = Robot(5, [BoomAtStart(), Layer()], messages=STACK_MESSAGES)
     with pytest.raises(LayerError, match=r"robot 5, layer 0 \(BoomAtStart\) failed"):
         async with robot:
-            await settle()
+            await wait_all_tasks_blocked()
     assert not _other_tasks()
 
 
@@ -69,7 +69,7 @@ async def test_failure_after_run_returned_still_surfaces() -> None:
         async with robot:
             await robot.run()
             stack[0].send_down(Note("after", []))
-            await settle()
+            await wait_all_tasks_blocked()
 
 
 async def test_failure_does_not_cancel_the_embedding_task() -> None:
@@ -88,7 +88,7 @@ async def test_clean_shutdown_leaves_no_pending_tasks(recwarn) -> None:
     robots = [Robot(i, recorders(3), transport=transport, messages=STACK_MESSAGES) for i in (1, 2)]
     async with robots[0], robots[1]:
         robots[0].layers[0].send(2, Note("hello", []))
-        await settle()
+        await wait_all_tasks_blocked()
         assert len(_other_tasks()) == 2 + 2 * 3  # a supervisor and three layer tasks each
     assert not _other_tasks()
     assert [r.state for r in robots] == [RobotState.STOPPED] * 2
@@ -183,7 +183,7 @@ async def test_cancelling_the_embedding_task_still_shuts_down() -> None:
             await robot.run()
 
     task = asyncio.create_task(embed())
-    await settle()
+    await wait_all_tasks_blocked()
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
         await task
@@ -199,7 +199,7 @@ async def test_a_request_pending_at_stop_fails_instead_of_hanging() -> None:
     stack = [Recorder(), Silent()]
     async with Robot(1, stack, messages=STACK_MESSAGES):
         asking = asyncio.create_task(stack[0].request_down(Query(1), timeout=60))
-        await settle()
+        await wait_all_tasks_blocked()
     with pytest.raises(RobotStateError, match="stopped while waiting for the reply from layer 1"):
         await asyncio.wait_for(asking, 5)
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from cas_async import Layer, MemoryTransport, Robot, Swarm
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
 
 
@@ -24,7 +24,7 @@ async def test_counts_by_class_internal_and_external(memory: MemoryTransport) ->
 
     swarm = Swarm(Robot(i, stack(), transport=memory, messages=STACK_MESSAGES) for i in (1, 2, 3))
     async with swarm:
-        await settle()
+        await wait_all_tasks_blocked()
         one = swarm[1].message_counts()
         two = swarm[2].message_counts()
         total = swarm.message_counts()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from cas_async import ConfigurationError, MemoryTransport, Message, MsgType, Robot, message
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Note, Query, Recorder, recorders
 from tests.taps import Tap
 
@@ -21,7 +21,7 @@ async def test_the_receiver_gets_the_object_sent_with_its_header(start_robot, ob
     await start_robot(2, b, transport=objects)
     note = Note("hello", [1])
     a[1].send(2, note)
-    await settle()
+    await wait_all_tasks_blocked()
     (got,) = b[1].external
     assert got is note  # no encoding: the very object
     assert (got.robot_id, got.src_layer, got.dst_layer, got.msg_id > 0) == (1, 1, 1, True)
@@ -35,7 +35,7 @@ async def test_sending_an_object_again_sends_a_copy(start_robot, objects) -> Non
     note = Note("twice", [])
     a[0].send(2, note)
     a[0].send(3, note)  # before robot 2 has even received the first
-    await settle()
+    await wait_all_tasks_blocked()
     (first,), (second,) = b[0].external, c[0].external
     assert first is note
     assert second is not note
@@ -49,12 +49,12 @@ async def test_each_receiver_of_a_broadcast_gets_its_own_message(start_robot, ob
         await start_robot(robot_id, stack, transport=objects)
     note = Note("all", [7])
     stacks[0][0].broadcast(note)
-    await settle()
+    await wait_all_tasks_blocked()
     received = [stack[0].external[0] for stack in stacks[1:]]
     assert len({id(msg) for msg in received}) == 3
     assert {(msg.text, msg.msg_id) for msg in received} == {("all", received[0].msg_id)}
     stacks[0][0].broadcast(note)  # again: the receiver holding it keeps its header
-    await settle()
+    await wait_all_tasks_blocked()
     assert {msg.msg_id for msg in received} == {received[0].msg_id}
     assert len({stack[0].external[1].msg_id for stack in stacks[1:]} | {note.msg_id}) == 2
 
@@ -69,9 +69,9 @@ async def test_a_request_is_answered_and_a_repeated_one_gets_the_kept_reply(
     query = Query(5)
     query.msg_type = MsgType.NEGOTIATION
     a[0].send(2, query)  # answered into handle_msg
-    await settle()
+    await wait_all_tasks_blocked()
     a[0].resend(2, query)  # as after a lost reply: the same id again
-    await settle()
+    await wait_all_tasks_blocked()
     assert robot_b.counters()["replies_resent"] == 1
     assert robot_b.dropped == {"duplicate": 1}
     assert [m.value for m in a[0].external] == [10]  # the kept reply again is a duplicate
@@ -97,7 +97,7 @@ async def test_what_is_not_a_message_of_the_stack_is_dropped_and_counted(
     robot_b = await start_robot(2, b, transport=tap)
     tap.deliver(2, b"\x93\x01\x02\x03", 1)  # bytes fed in by hand
     a[0].send(2, Stranger(1))  # over UDP its encoding would fail at the sender
-    await settle()
+    await wait_all_tasks_blocked()
     assert robot_b.dropped == {"decode.malformed": 1, "decode.unknown_type": 1}
     assert not b[0].external
 

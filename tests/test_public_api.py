@@ -3,9 +3,14 @@
 * ``cas_async``: what a layer author (and whoever assembles robots) uses;
 * ``cas_async.transport``: what a transport author implements and wraps;
 * ``cas_async.sim``: the simulation kit (Environment, kinematics, simulated middleware);
-* ``cas_async.scenario``: scenario files and runs, and the contract of an application.
+* ``cas_async.scenario``: scenario files and runs, and the contract of an application;
+* ``cas_async.testing``: what a user's test suite uses (with the pytest plugin).
 
 Every other module is internal, and says so with a leading underscore in its path.
+
+Names that are no identifiers (``@py_builtins``, ``@pytest_ar``) are pytest's: it
+rewrites the asserts of a plugin's whole distribution, cas_async included since it
+ships the ``cas_async_pytest`` plugin.
 """
 
 from __future__ import annotations
@@ -19,15 +24,22 @@ import pytest
 import cas_async
 import cas_async.scenario
 import cas_async.sim
+import cas_async.testing
 import cas_async.transport
 
 FACES: dict[str, types.ModuleType] = {
     "cas_async": cas_async,
     "cas_async.scenario": cas_async.scenario,
     "cas_async.sim": cas_async.sim,
+    "cas_async.testing": cas_async.testing,
     "cas_async.transport": cas_async.transport,
 }
-SUBPACKAGES = {"scenario", "sim", "transport"}
+SUBPACKAGES = {"scenario", "sim", "testing", "transport"}
+
+
+def _names(module: types.ModuleType) -> dict[str, object]:
+    """The module's names, without pytest's (see the module docs)."""
+    return {name: value for name, value in vars(module).items() if name.isidentifier()}
 
 
 def _modules() -> list[str]:
@@ -63,7 +75,7 @@ def test_a_face_exports_exactly_what_it_lists(face: str) -> None:
     assert not missing
     public = {
         name
-        for name, value in vars(module).items()
+        for name, value in _names(module).items()
         if not name.startswith("_") and not isinstance(value, types.ModuleType)
     }
     assert public == set(module.__all__)
@@ -75,7 +87,7 @@ def test_no_name_of_a_face_is_a_module(face: str) -> None:
     module = FACES[face]
     modules = {
         name
-        for name, value in vars(module).items()
+        for name, value in _names(module).items()
         if not name.startswith("_") and isinstance(value, types.ModuleType)
     }
     assert modules <= (SUBPACKAGES if face == "cas_async" else set())

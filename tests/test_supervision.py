@@ -20,7 +20,7 @@ from cas_async import (
     ScaledClock,
     VirtualClock,
 )
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Note
 
 
@@ -325,7 +325,7 @@ async def test_a_layer_whose_await_is_cancelled_from_outside_fails_the_robot() -
     robot = Robot(1, [Waits(), Layer()], messages=STACK_MESSAGES)
     with pytest.raises(LayerError, match=r"robot 1, layer 0 \(Waits\) failed: CancelledError"):
         async with robot:
-            await settle()
+            await wait_all_tasks_blocked()
             driver.cancel()
             await asyncio.wait_for(robot.run(), 5)
     assert robot.state is RobotState.STOPPED
@@ -338,6 +338,6 @@ async def test_a_layer_failure_is_noted_on_the_block_s_own_exception() -> None:
 
     with pytest.raises(KeyError) as caught:
         async with Robot(1, [Boom()], messages=STACK_MESSAGES):
-            await settle()
+            await wait_all_tasks_blocked()
             raise KeyError("the body's own error")
     assert any("robot 1, layer 0 (Boom) failed" in note for note in caught.value.__notes__)

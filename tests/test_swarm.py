@@ -18,7 +18,7 @@ from cas_async import (
     Swarm,
     UdpTransport,
 )
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Note, Recorder
 from tests.taps import Tap
 
@@ -120,7 +120,7 @@ async def test_swarm_stops_every_robot_before_closing_any() -> None:
         for i in range(3)
     )
     async with swarm:
-        await settle()
+        await wait_all_tasks_blocked()
     assert [robot.state for robot in swarm] == [RobotState.STOPPED] * 3
 
 
@@ -138,7 +138,7 @@ async def test_swarm_exit_under_cancellation_still_stops_every_robot() -> None:
             await swarm.run()
 
     task = asyncio.create_task(embed())
-    await settle()
+    await wait_all_tasks_blocked()
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
         await task

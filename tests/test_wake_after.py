@@ -7,7 +7,7 @@ import gc
 
 import cas_async
 from cas_async import MemoryTransport, Robot, Swarm, VirtualClock
-from tests.conftest import settle
+from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Query, Recorder
 
 
@@ -57,7 +57,7 @@ def test_pending_wakes_are_cancelled_when_the_robot_stops() -> None:
         loop = asyncio.get_running_loop()
         assert isinstance(loop, cas_async.VirtualTimeLoop)
         async with robot:
-            await settle()
+            await wait_all_tasks_blocked()
             assert len(loop.timer_deadlines()) == 2
         return len(loop.timer_deadlines())
 

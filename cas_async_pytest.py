@@ -1,0 +1,147 @@
+"""The pytest plugin of :mod:`cas_async.testing` (registered as the ``pytest11`` entry point).
+
+Loaded by every pytest session of an environment where cas_async is installed, so
+it does nothing until a test asks. It lives outside the ``cas_async`` package so
+that loading it does not import cas_async (numpy, msgspec, ...): a session that
+never uses it pays nothing. It registers the ``cas_virtual`` marker's name,
+defines fixtures (which import cas_async when first used), and answers
+pytest-asyncio's ``pytest_asyncio_loop_factories`` hook only once a test marked
+``cas_virtual`` has been collected. Before that, and in sessions without such a
+test, pytest-asyncio makes its loops exactly as it would without this plugin.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Final
+
+import pytest
+
+if TYPE_CHECKING:
+    from cas_async import FaultyTransport, MemoryTransport, UdpTransport
+    from cas_async.testing import Robots
+
+MARKER: Final = "cas_virtual"
+_DEFAULT_FACTORY: Final = "asyncio"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Declares the marker (so ``--strict-markers`` sessions accept it)."""
+    config.addinivalue_line(
+        "markers",
+        f"{MARKER}: run this async test on cas_async's virtual-time loop "
+        "(asyncio.sleep and timeouts take no wall time; needs pytest-asyncio >= 1.4)",
+    )
+
+
+class _LoopFactories:
+    """Answers pytest-asyncio's hook: the virtual-time loop for tests marked ``cas_virtual``."""
+
+    def __init__(self, config: pytest.Config) -> None:
+        self._config = config
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_asyncio_loop_factories(
+        self, config: pytest.Config, item: pytest.Item
+    ) -> Mapping[str, Callable[[], asyncio.AbstractEventLoop]] | None:
+        if item.get_closest_marker(MARKER) is not None:
+            from cas_async import VirtualTimeLoop
+
+            return {MARKER: VirtualTimeLoop}
+        hook = config.pluginmanager.hook.pytest_asyncio_loop_factories
+        if len(hook.get_hookimpls()) > 1:
+            return None  # another plugin, or the project's conftest, decides
+        # Nobody else answers, and pytest-asyncio requires an answer once anyone
+        # implements the hook: the loop it would make without any (the policy's).
+        return {_DEFAULT_FACTORY: asyncio.new_event_loop}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """Before pytest-asyncio looks at a ``cas_virtual`` test: be ready to give its loop."""
+    marker = metafunc.definition.get_closest_marker(MARKER)
+    if marker is None:
+        return
+    if not asyncio.iscoroutinefunction(metafunc.function):
+        raise pytest.UsageError(
+            f"{metafunc.definition.nodeid}: @pytest.mark.{MARKER} is for async def tests; "
+            "a plain test can call cas_async.run(main(), virtual=True)"
+        )
+    manager = metafunc.config.pluginmanager
+    if not hasattr(manager.hook, "pytest_asyncio_loop_factories"):
+        raise pytest.UsageError(
+            f"{metafunc.definition.nodeid}: @pytest.mark.{MARKER} needs pytest-asyncio >= 1.4 "
+            "(its pytest_asyncio_loop_factories hook): not installed, or older"
+        )
+    if manager.get_plugin(_LoopFactories.__name__) is None:
+        manager.register(_LoopFactories(metafunc.config), _LoopFactories.__name__)
+
+
+# -- fixtures ---------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def cas_memory() -> MemoryTransport:
+    """A fresh in-memory transport (datagrams as bytes, as over a network)."""
+    from cas_async import MemoryTransport
+
+    return MemoryTransport()
+
+
+@pytest.fixture
+def cas_udp() -> UdpTransport:
+    """A UDP transport on 127.0.0.1 whose robots bind ephemeral ports (real time only)."""
+    from cas_async import UdpTransport
+
+    return UdpTransport(host="127.0.0.1")
+
+
+@pytest.fixture
+def cas_lossy() -> Callable[..., FaultyTransport]:
+    """Factory: ``cas_lossy(loss=0.1, duplicate=0.0, reorder=0.0, delay=(0, 0), seed=0)``.
+
+    A seeded :class:`~cas_async.FaultyTransport` over a fresh memory transport: the
+    same seed and the same sends give the same faults (deterministic on virtual time).
+    """
+    from cas_async import Faults, FaultyTransport, MemoryTransport
+
+    def lossy(
+        loss: float = 0.0,
+        duplicate: float = 0.0,
+        reorder: float = 0.0,
+        delay: tuple[float, float] = (0.0, 0.0),
+        seed: int = 0,
+    ) -> FaultyTransport:
+        faults = Faults(loss=loss, duplicate=duplicate, reorder=reorder, delay=delay)
+        return FaultyTransport(MemoryTransport(), faults, seed=seed)
+
+    return lossy
+
+
+def _robots_fixture() -> Any:
+    """``cas_robots``, an async fixture: defined only where pytest-asyncio is installed."""
+    try:
+        import pytest_asyncio
+    except ImportError:  # pragma: no cover - the test extra installs it
+        return None
+
+    @pytest_asyncio.fixture(loop_scope="function")
+    async def cas_robots() -> AsyncIterator[Robots]:
+        """A :class:`~cas_async.testing.Robots` for the test, stopped and checked after it.
+
+        ``robot = await cas_robots.start(1, [MyLayer()], transport=cas_memory)``;
+        ``await cas_robots.swarm(robots)``. When the test ends every robot is stopped;
+        a layer that failed, or a drop for a reason not in ``cas_robots.allowed_drops``,
+        fails the test (with the reasons and counts, per robot).
+        """
+        from cas_async.testing import Robots
+
+        robots = Robots()
+        yield robots
+        await robots.aclose()
+
+    return cas_robots
+
+
+cas_robots: Final = _robots_fixture()

@@ -1,0 +1,184 @@
+"""The helpers of cas_async.testing, each shown catching what it is for."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import pytest
+
+import cas_async
+from cas_async import Layer, MemoryTransport, Message, MsgType, Robot, VirtualClock, message
+from cas_async.testing import (
+    Recorder,
+    Robots,
+    RunUntilTimeout,
+    UnexpectedDrops,
+    assert_roundtrip,
+    run_until,
+    wait_all_tasks_blocked,
+)
+
+
+@message
+class Hop(Message):
+    left: int
+
+
+@message
+class Level(Message):
+    x: float
+    names: list[str]
+
+
+async def test_wait_all_tasks_blocked_waits_for_a_chain_of_any_length() -> None:
+    # A hand-off of 500 steps (20 rounds of sleep(0), the old settle(), saw 20 of them).
+    done: list[int] = []
+
+    def step(n: int) -> None:
+        if n:
+            asyncio.get_running_loop().call_soon(step, n - 1)
+        else:
+            done.append(n)
+
+    step(500)
+    await wait_all_tasks_blocked()
+    assert done == [0]
+
+
+async def test_wait_all_tasks_blocked_does_not_move_time_past_a_timer() -> None:
+    fired: list[str] = []
+    asyncio.get_running_loop().call_later(3600, fired.append, "late")
+    await wait_all_tasks_blocked()
+    assert fired == []  # waiting on a timer is being blocked
+
+
+async def spin() -> None:
+    while True:
+        await asyncio.sleep(0)
+
+
+async def test_wait_all_tasks_blocked_names_a_task_that_never_waits() -> None:
+    spinner = asyncio.ensure_future(spin())
+    try:
+        with pytest.raises(RuntimeError, match="a task never waits"):
+            await wait_all_tasks_blocked()
+    finally:
+        spinner.cancel()
+
+
+def test_on_virtual_time_too_a_task_that_never_waits_is_named() -> None:
+    async def main() -> None:
+        spinner = asyncio.ensure_future(spin())
+        try:
+            with pytest.raises(RuntimeError, match="a task never waits"):
+                await wait_all_tasks_blocked()
+        finally:
+            spinner.cancel()
+
+    cas_async.run(main(), virtual=True)
+
+
+def test_on_virtual_time_it_returns_before_time_moves_on() -> None:
+    async def main() -> tuple[float, list[int]]:
+        loop = asyncio.get_running_loop()
+        done: list[int] = []
+        loop.call_soon(lambda: loop.call_soon(done.append, 1))
+        loop.call_later(5.0, done.append, 2)
+        await wait_all_tasks_blocked()
+        return loop.time(), list(done)
+
+    assert cas_async.run(main(), virtual=True) == (0.0, [1])
+
+
+def test_run_until_returns_when_true_and_names_what_stayed_false() -> None:
+    async def main() -> tuple[float, str]:
+        loop = asyncio.get_running_loop()
+        flag: list[bool] = []
+        loop.call_later(42.0, flag.append, True)
+        await run_until(lambda: flag, timeout=100.0)
+        reached = loop.time()
+        with pytest.raises(RunUntilTimeout) as caught:
+            await run_until(lambda: False, timeout=5.0, what="the impossible")
+        return reached, str(caught.value)
+
+    reached, message_ = cas_async.run(main(), virtual=True)
+    assert 42.0 <= reached < 42.1
+    assert message_ == "the impossible still false after 5 s"
+
+
+def test_recorder_records_and_answers_requests() -> None:
+    class Asker(Layer):
+        pass
+
+    async def main() -> tuple[list[Message], Message, list[Message]]:
+        memory, clock = MemoryTransport(), VirtualClock()
+        answering = Recorder(answer=lambda m: Hop(m.left - 1) if isinstance(m, Hop) else None)
+        asker = Asker()
+        robots = Robots()
+        await robots.start(1, [answering], transport=memory, clock=clock, messages=[Hop])
+        await robots.start(2, [asker], transport=memory, clock=clock, messages=[Hop])
+        asker.send(1, Hop(9))
+        reply = await asker.request(1, Hop(5), reply=Hop, timeout=1.0)
+        await robots.aclose()
+        return answering.external, reply, answering.requests
+
+    external, reply, requests = cas_async.run(main(), virtual=True)
+    assert [m.left for m in external if isinstance(m, Hop)] == [9]
+    assert isinstance(reply, Hop)
+    assert reply.left == 4
+    assert [m.msg_type for m in requests] == [MsgType.NEGOTIATION]
+
+
+def test_robots_raise_the_failure_of_a_layer_when_closed() -> None:
+    class Breaks(Layer):
+        async def handle_msg(self, msg: Message) -> None:
+            raise ValueError("broken on purpose")
+
+    async def main() -> None:
+        memory, clock = MemoryTransport(), VirtualClock()
+        robots = Robots()
+        await robots.start(2, [Breaks()], transport=memory, clock=clock, messages=[Hop])
+        sender = Recorder()
+        await robots.start(1, [sender], transport=memory, clock=clock, messages=[Hop])
+        sender.send(2, Hop(1))
+        await asyncio.sleep(1.0)
+        await robots.aclose()
+
+    with pytest.raises(cas_async.LayerError, match="broken on purpose"):
+        cas_async.run(main(), virtual=True)
+
+
+def test_robots_report_drops_not_allowed_by_robot_and_reason() -> None:
+    async def main(robots: Robots) -> None:
+        sender = Recorder()
+        await robots.start(1, [sender], transport=MemoryTransport(), messages=[Hop])
+        sender.send(7, Hop(1))  # nobody is robot 7
+        await robots.aclose()
+
+    with pytest.raises(UnexpectedDrops, match=r"robot 1: \{'unknown_robot': 1\}"):
+        cas_async.run(main(Robots()), virtual=True)
+    cas_async.run(main(Robots(allowed_drops={"unknown_robot"})), virtual=True)
+
+
+def test_assert_roundtrip_returns_the_copy_and_names_what_does_not_survive() -> None:
+    original = Level(1.5, ["a", "b"])
+    original.msg_id, original.robot_id = 7, 3
+    copy = assert_roundtrip(original)
+    assert copy == original
+    assert copy is not original
+    assert (copy.msg_id, copy.robot_id) == (7, 3)
+    with pytest.raises(AssertionError, match="does not survive the codec"):
+        assert_roundtrip(Level(1.0, [1]))  # type: ignore[list-item]  # an int in list[str]
+    nan = assert_roundtrip(Level(math.nan, []))
+    assert math.isnan(nan.x)
+
+
+def test_robots_default_to_a_virtual_clock_on_the_virtual_loop() -> None:
+    async def main() -> Robot:
+        robots = Robots()
+        robot = await robots.start(1, [Recorder()], transport=MemoryTransport(), messages=[Hop])
+        await robots.aclose()
+        return robot
+
+    assert isinstance(cas_async.run(main(), virtual=True).clock, VirtualClock)
