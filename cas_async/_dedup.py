@@ -179,19 +179,18 @@ class ReplyCache:
         budget: most bytes kept (replies plus a fixed overhead per reply).
     """
 
-    __slots__ = ("_budget", "_bytes", "_keep_for", "_order", "_replies", "_serial")
+    __slots__ = ("_budget", "_bytes", "_keep_for", "_order", "_replies")
 
     OVERHEAD: Final = 200
     """Bytes a kept reply costs besides its own (key, entry, dictionary slot), roughly."""
 
     def __init__(self, keep_for: float = 60.0, budget: int = 1 << 20) -> None:
-        # (asker, request) -> (serial, kept at, reply); and the same in the order kept:
-        # (kept at, serial, key). Evicting from the front of a deque costs the same
-        # however many went before; from the front of a dict, iterating over the
-        # holes its deletions left (7x slower once the budget is reached).
-        self._replies: dict[tuple[RobotId, int], tuple[int, float, bytes]] = {}
-        self._order: deque[tuple[float, int, tuple[RobotId, int]]] = deque()
-        self._serial = 0
+        # (asker, request) -> (kept at, reply); and (key, that very entry) in the order
+        # kept. Evicting from the front of a deque costs the same however many went
+        # before; from the front of a dict it iterates over the holes its deletions
+        # left (7x slower once the budget is reached).
+        self._replies: dict[tuple[RobotId, int], tuple[float, bytes]] = {}
+        self._order: deque[tuple[tuple[RobotId, int], tuple[float, bytes]]] = deque()
         self._keep_for = keep_for
         self._budget = budget
         self._bytes = 0
@@ -202,35 +201,33 @@ class ReplyCache:
         key = (asker, request_id)
         old = replies.get(key)
         if old is not None:  # kept again: its earlier place in the order stays till it expires
-            self._bytes -= _cost(old[2]) - ReplyCache.OVERHEAD
-        self._serial = serial = self._serial + 1
-        replies[key] = (serial, now, data)
+            self._bytes -= _cost(old[1]) - ReplyCache.OVERHEAD
+        replies[key] = entry = (now, data)
         order = self._order
-        order.append((now, serial, key))
+        order.append((key, entry))
         # _cost(data), inline: this runs for every reply a robot sends
         self._bytes += (len(data) if data.__class__ is bytes else 0) + ReplyCache.OVERHEAD
-        if self._bytes > self._budget or order[0][0] <= now - self._keep_for:
+        if self._bytes > self._budget or order[0][1][0] <= now - self._keep_for:
             self._evict(now - self._keep_for)
 
     def _evict(self, oldest: float) -> None:
         """Forgets the replies kept at ``oldest`` or before, then the oldest until in budget."""
         replies, order = self._replies, self._order
         while order:
-            at, kept_serial, kept_key = order[0]
-            if at > oldest and self._bytes <= self._budget:
+            key, entry = order[0]
+            if entry[0] > oldest and self._bytes <= self._budget:
                 break
             order.popleft()
-            entry = replies.get(kept_key)
-            if entry is not None and entry[0] == kept_serial:  # not kept again since
-                del replies[kept_key]
-                self._bytes -= _cost(entry[2])
+            if replies.get(key) is entry:  # not kept again since
+                del replies[key]
+                self._bytes -= _cost(entry[1])
             else:  # the place of a reply kept again later
                 self._bytes -= ReplyCache.OVERHEAD
 
     def get(self, asker: RobotId, request_id: int) -> bytes | None:
         """The reply sent to that request, if still kept."""
         entry = self._replies.get((asker, request_id))
-        return None if entry is None else entry[2]
+        return None if entry is None else entry[1]
 
     @property
     def size(self) -> int:
