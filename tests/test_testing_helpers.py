@@ -4,11 +4,22 @@ from __future__ import annotations
 
 import asyncio
 import math
+from collections.abc import Callable
 
 import pytest
 
 import cas_async
-from cas_async import Layer, MemoryTransport, Message, MsgType, Robot, VirtualClock, message
+from cas_async import (
+    FaultyTransport,
+    Layer,
+    MemoryTransport,
+    Message,
+    MsgType,
+    Robot,
+    UdpTransport,
+    VirtualClock,
+    message,
+)
 from cas_async.testing import (
     Recorder,
     Robots,
@@ -182,3 +193,39 @@ def test_robots_default_to_a_virtual_clock_on_the_virtual_loop() -> None:
         return robot
 
     assert isinstance(cas_async.run(main(), virtual=True).clock, VirtualClock)
+
+
+# -- the plugin's fixtures, used by this suite as by any other -----------------------------
+
+
+@pytest.mark.cas_virtual
+async def test_cas_lossy_loses_as_told_and_the_same_way_each_time(
+    cas_robots: Robots, cas_lossy: Callable[..., FaultyTransport]
+) -> None:
+    async def heard(seed: int) -> list[int]:
+        transport = cas_lossy(loss=0.5, seed=seed)
+        listener, sender = Recorder(), Recorder()
+        await cas_robots.start(10 * seed + 1, [listener], transport=transport, messages=[Hop])
+        await cas_robots.start(10 * seed + 2, [sender], transport=transport, messages=[Hop])
+        for n in range(40):
+            sender.send(10 * seed + 1, Hop(n))
+        await wait_all_tasks_blocked()
+        return [m.left for m in listener.of_type(Hop)]
+
+    first, again, other = await heard(1), await heard(1), await heard(2)
+    assert 5 < len(first) < 35  # about half
+    assert first == again  # seeded
+    assert first != other
+
+
+async def test_cas_udp_carries_messages_between_robots_on_loopback(
+    cas_robots: Robots, cas_udp: UdpTransport
+) -> None:
+    listener, sender = Recorder(), Recorder()
+    robot = await cas_robots.start(1, [listener], transport=cas_udp, messages=[Hop])
+    await cas_robots.start(2, [sender], transport=cas_udp, messages=[Hop])
+    assert robot.address[0] == "127.0.0.1"  # type: ignore[index]
+    assert robot.address[1] > 0  # type: ignore[index]
+    sender.send(1, Hop(3))
+    await run_until(lambda: listener.external, timeout=5.0)
+    assert [m.left for m in listener.of_type(Hop)] == [3]
