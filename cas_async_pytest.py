@@ -38,9 +38,6 @@ def pytest_configure(config: pytest.Config) -> None:
 class _LoopFactories:
     """Answers pytest-asyncio's hook: the virtual-time loop for tests marked ``cas_virtual``."""
 
-    def __init__(self, config: pytest.Config) -> None:
-        self._config = config
-
     @pytest.hookimpl(tryfirst=True)
     def pytest_asyncio_loop_factories(
         self, config: pytest.Config, item: pytest.Item
@@ -75,7 +72,7 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
             "(its pytest_asyncio_loop_factories hook): not installed, or older"
         )
     if manager.get_plugin(_LoopFactories.__name__) is None:
-        manager.register(_LoopFactories(metafunc.config), _LoopFactories.__name__)
+        manager.register(_LoopFactories(), _LoopFactories.__name__)
 
 
 # -- fixtures ---------------------------------------------------------------------------------
