@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 
@@ -26,6 +27,7 @@ from cas_async.testing import (
     RunUntilTimeout,
     UnexpectedDrops,
     assert_roundtrip,
+    run_scenario_file,
     run_until,
     wait_all_tasks_blocked,
 )
@@ -229,3 +231,28 @@ async def test_cas_udp_carries_messages_between_robots_on_loopback(
     sender.send(1, Hop(3))
     await run_until(lambda: listener.external, timeout=5.0)
     assert [m.left for m in listener.of_type(Hop)] == [3]
+
+
+SHIPPED = Path(__file__).resolve().parents[1] / "apps" / "fire_brigade" / "scenarios"
+
+
+def test_run_scenario_file_runs_in_virtual_time_with_overrides() -> None:
+    seen: list[int] = []
+    outcome = run_scenario_file(
+        SHIPPED / "thesis_5_8_1.toml",
+        "mission.buckets=3",
+        "run.seed=5",
+        observe=lambda environment: seen.append(len(environment.robot_ids)),
+    )
+    assert outcome.result.status.value == "completed"
+    assert (outcome.result.target, outcome.result.delivered) == (3, 3)
+    assert outcome.result.seed == 5
+    assert seen == [20]  # observed before the robots started
+    assert outcome.environment.items.retired == 3
+    again = run_scenario_file(SHIPPED / "thesis_5_8_1.toml", "mission.buckets=3", "run.seed=5")
+    assert again.result.makespan == outcome.result.makespan  # virtual time: the same run
+
+
+async def test_run_scenario_file_says_what_to_do_in_an_async_test() -> None:
+    with pytest.raises(RuntimeError, match=r"await cas_async\.scenario\.run_scenario"):
+        run_scenario_file(SHIPPED / "thesis_5_8_1.toml")

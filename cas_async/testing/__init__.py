@@ -19,25 +19,33 @@ policy or warning filter, and imports cas_async only when a test asks for it.
 
 The helpers work in any asyncio test, with or without the plugin:
 :func:`wait_all_tasks_blocked`, :func:`run_until`, :class:`Recorder`,
-:func:`assert_roundtrip`.
+:func:`assert_roundtrip`, and :func:`run_scenario_file` for a whole scenario.
 """
 
 from ._helpers import (
+    LayerHarness,
     Recorder,
     Robots,
     RunUntilTimeout,
+    ScenarioOutcome,
+    Script,
     UnexpectedDrops,
     assert_roundtrip,
+    run_scenario_file,
     run_until,
     wait_all_tasks_blocked,
 )
 
 __all__ = [
+    "LayerHarness",
     "Recorder",
     "Robots",
     "RunUntilTimeout",
+    "ScenarioOutcome",
+    "Script",
     "UnexpectedDrops",
     "assert_roundtrip",
+    "run_scenario_file",
     "run_until",
     "wait_all_tasks_blocked",
 ]

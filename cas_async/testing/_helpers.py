@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import asyncio
+import os
 from collections import Counter
 from collections.abc import Callable, Collection, Iterable, Sequence
 from contextlib import AsyncExitStack
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Final, TypeVar, final
 
 from .._clock import Clock, VirtualClock
@@ -13,16 +16,24 @@ from .._codec import Codec
 from .._layer import Layer
 from .._message import Message, spec_of
 from .._robot import Robot
+from .._runner import run as run_loop
 from .._swarm import Swarm
 from .._virtual_loop import VirtualTimeLoop
+from ..scenario import RunResult, ScenarioRun, Trace, load_scenario
+from ..sim import Environment
 from ..transport._base import Transport
+from ..transport._memory import MemoryTransport
 
 __all__ = [
+    "LayerHarness",
     "Recorder",
     "Robots",
     "RunUntilTimeout",
+    "ScenarioOutcome",
+    "Script",
     "UnexpectedDrops",
     "assert_roundtrip",
+    "run_scenario_file",
     "run_until",
     "wait_all_tasks_blocked",
 ]
@@ -108,41 +119,49 @@ def _name_of(condition: Callable[[], object]) -> str:
 class Recorder(Layer):
     """A layer that records what reaches it, and answers requests with ``answer(msg)``.
 
-    ``external`` and ``internal`` keep the messages that reached ``handle_msg`` and
-    ``store_intra_msg``, in order; ``requests`` the NEGOTIATIONs it was asked (from
-    another robot or from a neighbour). ``answer`` (default: none) returns the reply
-    to a request, or ``None`` to leave it unanswered.
+    ``arrived`` keeps every message that reached the layer, in order; ``external``
+    and ``internal`` those that reached ``handle_msg`` and ``store_intra_msg``;
+    ``requests`` the NEGOTIATIONs it was asked (by another robot or a neighbour).
+    ``answer`` (default: none) returns the reply to a request, or ``None`` to leave
+    it unanswered (an external one then reaches ``handle_msg``).
 
     Args:
         answer: the reply to a request.
     """
 
     def __init__(self, answer: Callable[[Message], Message | None] | None = None) -> None:
+        self.arrived: list[Message] = []
         self.external: list[Message] = []
         self.internal: list[Message] = []
         self.requests: list[Message] = []
         self._answer = answer
 
     def of_type(self, cls: type[M]) -> list[M]:
-        """The messages of class ``cls`` that reached the layer, from outside or inside."""
-        return [m for m in (*self.external, *self.internal) if isinstance(m, cls)]
+        """The messages of class ``cls`` that reached the layer, in order."""
+        return [m for m in self.arrived if isinstance(m, cls)]
 
     def get_msg_reply(self, msg: Message) -> Message | None:
         """An external request: recorded, and answered with ``answer`` at once."""
         self.requests.append(msg)
-        return self._answer(msg) if self._answer is not None else None
+        reply = self._answer(msg) if self._answer is not None else None
+        if reply is not None:  # else it reaches handle_msg, which records it
+            self.arrived.append(msg)
+        return reply
 
     async def handle_msg(self, msg: Message) -> None:
-        """Recorded (requests ``answer`` left unanswered too)."""
+        """Recorded."""
+        self.arrived.append(msg)
         self.external.append(msg)
 
     async def get_intra_msg_reply(self, msg: Message) -> Message | None:
         """An internal request: recorded, and answered with ``answer``."""
+        self.arrived.append(msg)
         self.requests.append(msg)
         return self._answer(msg) if self._answer is not None else None
 
     async def store_intra_msg(self, msg: Message) -> None:
         """Recorded."""
+        self.arrived.append(msg)
         self.internal.append(msg)
 
 
@@ -283,3 +302,236 @@ class Robots:
                 "cas_robots.allowed_drops.add(reason) if the test expects it:\n  "
                 + "\n  ".join(lines)
             )
+
+
+@dataclass(frozen=True)
+class ScenarioOutcome:
+    """What :func:`run_scenario_file` ran: the result, the trace, and the world at the end.
+
+    Attributes:
+        result: what the run measured (``results.json``'s figures).
+        trace: where the robots were over simulated time.
+        environment: the simulated world as the run left it (its item ledger too).
+    """
+
+    result: RunResult
+    trace: Trace
+    environment: Environment
+
+
+def run_scenario_file(
+    path: str | os.PathLike[str],
+    *overrides: str,
+    virtual: bool = True,
+    observe: Callable[[Environment], None] | None = None,
+) -> ScenarioOutcome:
+    """Loads a scenario file, runs it to its end, and returns what it measured.
+
+    On virtual time with the in-memory transport by default (fast, and the same
+    seed gives the same run); ``overrides`` are ``--set`` strings
+    (``"strategy.name=solo"``). For a plain (synchronous) test: it runs its own
+    event loop.
+
+    Args:
+        path: the scenario file.
+        overrides: ``KEY=VALUE`` settings, applied after the file's.
+        virtual: run on virtual time with the memory transport (``run.virtual``,
+            ``run.transport``); ``False`` runs the file's own settings.
+        observe: called with the Environment before the robots start.
+
+    Raises:
+        cas_async.scenario.ScenarioError: the file or an override is wrong.
+        RuntimeError: called from a running event loop (await
+            ``cas_async.scenario.run_scenario`` there instead).
+    """
+    settings = ["run.virtual=true", 'run.transport="memory"'] if virtual else []
+    scenario = load_scenario(Path(path), [*settings, *overrides])
+
+    async def run() -> ScenarioOutcome:
+        scenario_run = ScenarioRun(scenario, observe=observe)
+        async with scenario_run:
+            await scenario_run.until_done()
+        return ScenarioOutcome(scenario_run.result, scenario_run.trace, scenario_run.environment)
+
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:
+        pass
+    else:
+        raise RuntimeError(
+            "run_scenario_file runs its own event loop: in an async test, "
+            "await cas_async.scenario.run_scenario(load_scenario(...)) instead"
+        )
+    outcome: ScenarioOutcome = run_loop(run(), virtual=scenario.run.virtual)
+    return outcome
+
+
+# -- one layer in isolation -------------------------------------------------------------------
+
+Script = Callable[[Message], Message | None]
+"""A scripted answer: what a request gets back, or ``None`` to leave it unanswered."""
+
+
+class _Scripted(Recorder):
+    """A scripted neighbour or peer layer: records, answers by the class of the request."""
+
+    def __init__(self) -> None:
+        super().__init__(answer=self._reply)
+        self.answers: dict[type[Message], Script] = {}
+
+    def _reply(self, msg: Message) -> Message | None:
+        for cls in type(msg).__mro__:
+            answer = self.answers.get(cls)
+            if answer is not None:
+                return answer(msg)
+        return None
+
+
+@final
+class LayerHarness:
+    """A layer under test, between scripted neighbours, with scripted peer robots.
+
+    The layer runs in a real robot of ``height`` layers, at ``level``; every other
+    layer of that robot is a scripted :class:`Recorder`; each robot of ``peers`` is
+    a real robot of the same height whose layer at ``level`` is one too. Messages
+    travel through the real runtime and codec (on a :class:`~cas_async.MemoryTransport`),
+    so the layer sees exactly what it would in a swarm::
+
+        async with LayerHarness(MyStrategy(params), level=1, height=5, peers=[3]) as h:
+            h.answer_below(RequestRobotsInRange, lambda m: RequestRobotsInRange(...))
+            h.from_above(ChangeStatus("MoveBucket", bucket=1))
+            await h.settle()
+            assert h.sent_to(3) == [RequestPartner(...)]
+
+    Args:
+        layer: the layer under test.
+        level: its level (0 is the top).
+        height: the robot's number of layers.
+        robot_id: the robot's id.
+        peers: the ids of the peer robots (same height, scripted at ``level``).
+        messages: the messages of the stack (default: every registered message).
+        clock: the clock (default: a :class:`~cas_async.VirtualClock` on the
+            virtual-time loop, else the robots' default).
+    """
+
+    def __init__(
+        self,
+        layer: Layer,
+        *,
+        level: int = 0,
+        height: int = 1,
+        robot_id: int = 1,
+        peers: Iterable[int] = (),
+        messages: Sequence[type[Message]] | None = None,
+        clock: Clock | None = None,
+    ) -> None:
+        if not 0 <= level < height:
+            raise ValueError(f"level {level} is not in a stack of {height} layers")
+        self.layer = layer
+        self.level = level
+        self._height = height
+        self._robot_id = robot_id
+        self._peer_ids = tuple(peers)
+        if robot_id in self._peer_ids:
+            raise ValueError(f"robot {robot_id} cannot be its own peer")
+        self._messages = messages
+        self._clock = clock
+        self._own = [_Scripted() for _ in range(height)]
+        self._peers = {peer: _Scripted() for peer in self._peer_ids}
+        self.robots = Robots(messages=messages)
+
+    async def __aenter__(self) -> LayerHarness:
+        """Starts the robot and its peers (their layers too)."""
+        transport = MemoryTransport()
+        clock = self._clock
+        if clock is None and isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
+            clock = VirtualClock()
+        layers: list[Layer] = list(self._own)
+        layers[self.level] = self.layer
+        robots = [Robot(self._robot_id, layers, transport=transport, clock=clock, **self._opts())]
+        for peer, scripted in self._peers.items():
+            stack: list[Layer] = [_Scripted() for _ in range(self._height)]
+            stack[self.level] = scripted
+            robots.append(Robot(peer, stack, transport=transport, clock=clock, **self._opts()))
+        await self.robots.swarm(robots)
+        return self
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        """Stops everything; raises the layer's failure, or drops no test allowed."""
+        await self.robots.aclose()
+
+    def _opts(self) -> dict[str, Any]:
+        return {} if self._messages is None else {"messages": self._messages}
+
+    # -- what the layer is given --------------------------------------------------------
+
+    def from_above(self, msg: Message) -> None:
+        """The layer above sends ``msg`` down to the layer (``send_down``)."""
+        self._neighbour(-1, "above").send_down(msg)
+
+    def from_below(self, msg: Message) -> None:
+        """The layer below sends ``msg`` up to the layer (``send_up``)."""
+        self._neighbour(+1, "below").send_up(msg)
+
+    def from_peer(self, peer: int, msg: Message) -> None:
+        """Peer robot ``peer``'s layer of the same level sends ``msg`` to the layer."""
+        self._peer(peer).send(self._robot_id, msg)
+
+    async def request_from_peer(self, peer: int, msg: Message, *, timeout: float = 1.0) -> Message:
+        """Peer ``peer`` asks the layer ``msg`` (a request) and returns its answer."""
+        return await self._peer(peer).request(self._robot_id, msg, timeout=timeout)
+
+    def answer_at(self, level: int, cls: type[Message], answer: Script) -> None:
+        """How the robot's layer at ``level`` answers the requests of class ``cls`` it gets."""
+        if level == self.level or not 0 <= level < self._height:
+            raise ValueError(f"level {level} is not a scripted layer of this harness")
+        self._own[level].answers[cls] = answer
+
+    def answer_above(self, cls: type[Message], answer: Script) -> None:
+        """How the layer above answers the layer's requests of class ``cls``."""
+        self._own[self._index(-1, "above")].answers[cls] = answer
+
+    def answer_below(self, cls: type[Message], answer: Script) -> None:
+        """How the layer below answers the layer's requests of class ``cls``."""
+        self._own[self._index(+1, "below")].answers[cls] = answer
+
+    def answer_peer(self, peer: int, cls: type[Message], answer: Script) -> None:
+        """How peer ``peer`` answers the layer's requests of class ``cls``."""
+        self._peer(peer).answers[cls] = answer
+
+    # -- what the layer did -------------------------------------------------------------
+
+    @property
+    def sent_up(self) -> list[Message]:
+        """What reached the layer above from the layer, in order (requests included)."""
+        return list(self._own[self._index(-1, "above")].arrived)
+
+    @property
+    def sent_down(self) -> list[Message]:
+        """What reached the layer below from the layer, in order (requests included)."""
+        return list(self._own[self._index(+1, "below")].arrived)
+
+    def sent_to(self, peer: int) -> list[Message]:
+        """What reached peer ``peer`` from the layer, in order (requests included)."""
+        return list(self._peer(peer).arrived)
+
+    async def settle(self) -> None:
+        """Lets everything that can happen now happen (:func:`wait_all_tasks_blocked`)."""
+        await wait_all_tasks_blocked()
+
+    # -- helpers -------------------------------------------------------------------------
+
+    def _index(self, step: int, where: str) -> int:
+        index = self.level + step
+        if not 0 <= index < self._height:
+            raise ValueError(f"the layer at level {self.level} has no layer {where}")
+        return index
+
+    def _neighbour(self, step: int, where: str) -> Layer:
+        return self._own[self._index(step, where)]
+
+    def _peer(self, peer: int) -> _Scripted:
+        scripted = self._peers.get(peer)
+        if scripted is None:
+            raise ValueError(f"robot {peer} is not a peer of this harness: {self._peer_ids}")
+        return scripted

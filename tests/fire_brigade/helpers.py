@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-import cas_async
-from cas_async.scenario import RunResult, Trace, load_scenario, run_scenario
+from cas_async.scenario import RunResult, Trace
 from cas_async.sim import Environment
+from cas_async.testing import run_scenario_file
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "apps" / "fire_brigade" / "scenarios"
 VIRTUAL = ("run.virtual=true", 'run.transport="memory"')
@@ -25,7 +25,6 @@ def run_checked(
     Returns the result, the trace, and how many times the audit ran. ``observe``
     is also called with the Environment before the robots start.
     """
-    loaded = load_scenario(scenario, [*(VIRTUAL if virtual else ()), *overrides])
     audits = 0
 
     def audit_every_event(environment: Environment) -> None:
@@ -40,7 +39,5 @@ def run_checked(
         if observe is not None:
             observe(environment)
 
-    result, trace = cas_async.run(
-        run_scenario(loaded, observe=audit_every_event), virtual=loaded.run.virtual
-    )
-    return result, trace, audits
+    outcome = run_scenario_file(scenario, *overrides, virtual=virtual, observe=audit_every_event)
+    return outcome.result, outcome.trace, audits
