@@ -13,7 +13,7 @@ test, pytest-asyncio makes its loops exactly as it would without this plugin.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator, Callable, Mapping
+from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any, Final
 
 import pytest
@@ -54,9 +54,35 @@ class _LoopFactories:
         return {_DEFAULT_FACTORY: asyncio.new_event_loop}
 
 
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_pycollect_makeitem(
+    collector: pytest.Module | pytest.Class, name: str, obj: object
+) -> Iterator[Any]:
+    """Before pytest-asyncio parametrizes a test marked ``cas_virtual``: be ready to give its loop.
+
+    pytest-asyncio asks for loop factories while the function is being collected
+    (in its own ``pytest_generate_tests``, which may run before this plugin's): the
+    hook object is registered here, around the collection of the marked function.
+    """
+    marks = getattr(obj, "pytestmark", [])
+    if collector.get_closest_marker(MARKER) is not None or any(
+        getattr(mark, "name", None) == MARKER for mark in marks
+    ):
+        _answer_loop_factories(collector.config)
+    return (yield)
+
+
+def _answer_loop_factories(config: pytest.Config) -> None:
+    manager = config.pluginmanager
+    if hasattr(manager.hook, "pytest_asyncio_loop_factories") and (
+        manager.get_plugin(_LoopFactories.__name__) is None
+    ):
+        manager.register(_LoopFactories(), _LoopFactories.__name__)
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
-    """Before pytest-asyncio looks at a ``cas_virtual`` test: be ready to give its loop."""
+    """A ``cas_virtual`` test must be ``async def``, with pytest-asyncio >= 1.4."""
     marker = metafunc.definition.get_closest_marker(MARKER)
     if marker is None:
         return
@@ -71,8 +97,7 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
             f"{metafunc.definition.nodeid}: @pytest.mark.{MARKER} needs pytest-asyncio >= 1.4 "
             "(its pytest_asyncio_loop_factories hook): not installed, or older"
         )
-    if manager.get_plugin(_LoopFactories.__name__) is None:
-        manager.register(_LoopFactories(), _LoopFactories.__name__)
+    _answer_loop_factories(metafunc.config)
 
 
 # -- fixtures ---------------------------------------------------------------------------------

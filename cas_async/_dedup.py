@@ -26,7 +26,6 @@ back.
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable
 from typing import Final
 
@@ -169,70 +168,61 @@ def _cost(data: bytes) -> int:
 class ReplyCache:
     """The encoded replies to the requests answered lately, kept by age within a budget.
 
-    A reply is kept ``keep_for`` seconds (of whatever clock gives ``now``): an asker
-    that lost it re-sends its request within its retries, and however many other
-    requests it asked meanwhile, the reply is still there. The byte budget bounds
-    memory whatever the traffic; when it is exceeded, the oldest replies go first.
+    A reply is kept at least ``keep_for`` seconds (of whatever clock gives ``now``),
+    and at most about twice that: an asker that lost it re-sends its request within
+    its retries, and however many other requests it asked meanwhile, the reply is
+    still there. The byte budget bounds memory whatever the traffic.
+
+    Replies are kept in two generations: the current one, and the one before.
+    Once the current one is ``keep_for`` old, or holds half the budget, it becomes
+    the one before, and the one before is dropped whole. Keeping a reply is one
+    dictionary insertion (a robot keeps every reply it sends), and forgetting costs
+    nothing per reply. When the budget is what runs out, the older half goes at once.
 
     Args:
-        keep_for: how long a reply is kept.
-        budget: most bytes kept (replies plus a fixed overhead per reply).
+        keep_for: how long a reply is kept, at least.
+        budget: most bytes kept (replies plus a fixed overhead per reply), about.
     """
 
-    __slots__ = ("_budget", "_bytes", "_keep_for", "_order", "_replies")
+    __slots__ = ("_before", "_before_bytes", "_bytes", "_current", "_half", "_keep_for", "_since")
 
     OVERHEAD: Final = 200
     """Bytes a kept reply costs besides its own (key, entry, dictionary slot), roughly."""
 
     def __init__(self, keep_for: float = 60.0, budget: int = 1 << 20) -> None:
-        # (asker, request) -> (kept at, reply); and (key, that very entry) in the order
-        # kept. Evicting from the front of a deque costs the same however many went
-        # before; from the front of a dict it iterates over the holes its deletions
-        # left (7x slower once the budget is reached).
-        self._replies: dict[tuple[RobotId, int], tuple[float, bytes]] = {}
-        self._order: deque[tuple[tuple[RobotId, int], tuple[float, bytes]]] = deque()
+        self._current: dict[tuple[RobotId, int], bytes] = {}
+        self._before: dict[tuple[RobotId, int], bytes] = {}
+        self._bytes = self._before_bytes = 0
+        self._since: float | None = None  # when the current generation began
         self._keep_for = keep_for
-        self._budget = budget
-        self._bytes = 0
+        self._half = budget // 2
 
     def keep(self, asker: RobotId, request_id: int, data: bytes, now: float) -> None:
         """Remembers ``data`` as the reply sent at ``now`` to ``asker``'s request ``request_id``."""
-        replies = self._replies
-        key = (asker, request_id)
-        old = replies.get(key)
-        if old is not None:  # kept again: its earlier place in the order stays till it expires
-            self._bytes -= _cost(old[1]) - ReplyCache.OVERHEAD
-        replies[key] = entry = (now, data)
-        order = self._order
-        order.append((key, entry))
         # _cost(data), inline: this runs for every reply a robot sends
-        self._bytes += (len(data) if data.__class__ is bytes else 0) + ReplyCache.OVERHEAD
-        if self._bytes > self._budget or order[0][1][0] <= now - self._keep_for:
-            self._evict(now - self._keep_for)
-
-    def _evict(self, oldest: float) -> None:
-        """Forgets the replies kept at ``oldest`` or before, then the oldest until in budget."""
-        replies, order = self._replies, self._order
-        while order:
-            key, entry = order[0]
-            if entry[0] > oldest and self._bytes <= self._budget:
-                break
-            order.popleft()
-            if replies.get(key) is entry:  # not kept again since
-                del replies[key]
-                self._bytes -= _cost(entry[1])
-            else:  # the place of a reply kept again later
-                self._bytes -= ReplyCache.OVERHEAD
+        cost = (len(data) if data.__class__ is bytes else 0) + ReplyCache.OVERHEAD
+        since = self._since
+        if since is None or now - since >= self._keep_for or self._bytes + cost > self._half:
+            self._before, self._before_bytes = self._current, self._bytes
+            self._current, self._bytes, self._since = {}, 0, now
+        current = self._current
+        key = (asker, request_id)
+        old = current.get(key)
+        if old is not None:  # kept again: counted once
+            self._bytes -= _cost(old)
+        current[key] = data
+        self._bytes += cost
 
     def get(self, asker: RobotId, request_id: int) -> bytes | None:
         """The reply sent to that request, if still kept."""
-        entry = self._replies.get((asker, request_id))
-        return None if entry is None else entry[1]
+        key = (asker, request_id)
+        data = self._current.get(key)
+        return data if data is not None else self._before.get(key)
 
     @property
     def size(self) -> int:
         """Bytes counted against the budget now."""
-        return self._bytes
+        return self._bytes + self._before_bytes
 
     def __len__(self) -> int:
-        return len(self._replies)
+        return len(self._current) + len(self._before)

@@ -170,3 +170,27 @@ def test_the_robots_fixture_reports_unexpected_drops_by_robot_and_reason(
     )
     result.assert_outcomes(passed=2, errors=1)
     result.stdout.fnmatch_lines(["*UnexpectedDrops*", "*robot 1: {'unknown_robot': 1}*"])
+
+
+def test_the_marker_works_on_a_module_and_a_class(pytester: pytest.Pytester) -> None:
+    result = run(
+        pytester,
+        """
+        import asyncio
+
+        import pytest
+
+        from cas_async import VirtualTimeLoop
+
+        pytestmark = pytest.mark.cas_virtual
+
+        async def test_module_level():
+            assert isinstance(asyncio.get_running_loop(), VirtualTimeLoop)
+
+        class TestGroup:
+            async def test_in_a_class(self):
+                await asyncio.sleep(86400)
+                assert asyncio.get_running_loop().time() == 86400.0
+        """,
+    )
+    result.assert_outcomes(passed=2)

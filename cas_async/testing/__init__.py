@@ -19,7 +19,10 @@ policy or warning filter, and imports cas_async only when a test asks for it.
 
 The helpers work in any asyncio test, with or without the plugin:
 :func:`wait_all_tasks_blocked`, :func:`run_until`, :class:`Recorder`,
-:func:`assert_roundtrip`, and :func:`run_scenario_file` for a whole scenario.
+:func:`assert_roundtrip`, :func:`strategy_for` (Hypothesis strategies of messages),
+:class:`LayerHarness` (one layer between scripted neighbours and peers),
+:func:`run_scenario_file` (a whole scenario) and :func:`peer_process` (a peer in
+another process).
 """
 
 from ._helpers import (
@@ -31,10 +34,12 @@ from ._helpers import (
     Script,
     UnexpectedDrops,
     assert_roundtrip,
+    peer_process,
     run_scenario_file,
     run_until,
     wait_all_tasks_blocked,
 )
+from ._strategies import strategy_for
 
 __all__ = [
     "LayerHarness",
@@ -45,7 +50,9 @@ __all__ = [
     "Script",
     "UnexpectedDrops",
     "assert_roundtrip",
+    "peer_process",
     "run_scenario_file",
     "run_until",
+    "strategy_for",
     "wait_all_tasks_blocked",
 ]

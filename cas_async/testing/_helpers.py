@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
+import typing
 from collections import Counter
-from collections.abc import Callable, Collection, Iterable, Sequence
-from contextlib import AsyncExitStack
+from collections.abc import AsyncIterator, Callable, Collection, Iterable, Mapping, Sequence
+from contextlib import AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, TypeVar, final
+
+import numpy as np
 
 from .._clock import Clock, VirtualClock
 from .._codec import Codec
@@ -33,6 +37,7 @@ __all__ = [
     "Script",
     "UnexpectedDrops",
     "assert_roundtrip",
+    "peer_process",
     "run_scenario_file",
     "run_until",
     "wait_all_tasks_blocked",
@@ -201,15 +206,22 @@ def assert_roundtrip(
 
 
 def _same(a: object, b: object) -> bool:
-    """Equal, NaN counting as equal to NaN (a float field may carry one)."""
-    if isinstance(a, float) and isinstance(b, float) and a != a and b != b:
-        return True
-    try:
-        return bool(a == b)
-    except ValueError:  # numpy arrays: element-wise
-        import numpy as np
-
-        return bool(np.array_equal(a, b, equal_nan=True))  # type: ignore[arg-type]
+    """Equal, NaN counting as equal to NaN wherever it is (a float, in a list, an array)."""
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or (a != a and b != b)
+    if isinstance(a, list | tuple) and type(a) is type(b):
+        other = typing.cast(Sequence[object], b)
+        return len(a) == len(other) and all(_same(x, y) for x, y in zip(a, other, strict=True))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, Message) and type(a) is type(b):
+        return all(
+            _same(getattr(a, name), getattr(b, name)) for name in spec_of(type(a)).field_names
+        )
+    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
+        floating = a.dtype.kind in "fc"
+        return a.dtype == b.dtype and bool(np.array_equal(a, b, equal_nan=floating))
+    return bool(a == b)
 
 
 _HEADER: Final = ("msg_id", "msg_type", "robot_id", "src_layer", "dst_layer", "corr_id")
@@ -535,3 +547,56 @@ class LayerHarness:
         if scripted is None:
             raise ValueError(f"robot {peer} is not a peer of this harness: {self._peer_ids}")
         return scripted
+
+
+# -- a peer in another process ----------------------------------------------------------------
+
+
+@asynccontextmanager
+async def peer_process(
+    *argv: str, ready: str = "ready", timeout: float = 10.0, env: Mapping[str, str] | None = None
+) -> AsyncIterator[asyncio.subprocess.Process]:
+    """Starts ``argv``, waits until it prints the line ``ready``, and always ends it after.
+
+    For tests with robots in another process (real UDP on loopback, say): the
+    process's stdin, stdout and stderr are pipes (what it prints after ``ready`` is
+    the test's to read). Leaving the block kills the process if it still runs and
+    waits for it (5 s at most), whatever happened in the block.
+
+    Raises:
+        TimeoutError: no ``ready`` line within ``timeout`` (wall) seconds.
+        RuntimeError: the process ended before it was ready (with its exit status
+            and the end of its stderr), or the loop runs on virtual time (where
+            waiting for another process cannot be timed).
+    """
+    if isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
+        raise RuntimeError("peer_process needs a real-time loop (not @pytest.mark.cas_virtual)")
+    process = await asyncio.create_subprocess_exec(
+        *argv,
+        stdin=asyncio.subprocess.PIPE,
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+        env=None if env is None else dict(env),
+    )
+    try:
+        assert process.stdout is not None  # a pipe, asked for above
+        try:
+            async with asyncio.timeout(timeout):
+                while (line := await process.stdout.readline()).decode().strip() != ready:
+                    if not line:  # end of output: the process is gone
+                        status = await process.wait()
+                        assert process.stderr is not None
+                        said = (await process.stderr.read()).decode(errors="replace")[-500:]
+                        raise RuntimeError(
+                            f"{argv[0]} ended (exit {status}) before printing {ready!r}: {said}"
+                        )
+        except TimeoutError:
+            raise TimeoutError(f"{argv[0]} did not print {ready!r} within {timeout:g} s") from None
+        yield process
+    finally:
+        if process.returncode is None:
+            with contextlib.suppress(ProcessLookupError):  # it may have just ended
+                process.kill()
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(5.0):
+                await process.wait()
