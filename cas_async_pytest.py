@@ -23,15 +23,21 @@ if TYPE_CHECKING:
     from cas_async.testing import Robots
 
 MARKER: Final = "cas_virtual"
+DROPS_MARKER: Final = "cas_allow_drops"
 _DEFAULT_FACTORY: Final = "asyncio"
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Declares the marker (so ``--strict-markers`` sessions accept it)."""
+    """Declares the markers (so ``--strict-markers`` sessions accept them)."""
     config.addinivalue_line(
         "markers",
         f"{MARKER}: run this async test on cas_async's virtual-time loop "
         "(asyncio.sleep and timeouts take no wall time; needs pytest-asyncio >= 1.4)",
+    )
+    config.addinivalue_line(
+        "markers",
+        f"{DROPS_MARKER}(*reasons): drop reasons the cas_robots fixture does not "
+        "count as a failure in this test (e.g. 'unknown_robot', 'duplicate')",
     )
 
 
@@ -149,17 +155,22 @@ def _robots_fixture() -> Any:
         return None
 
     @pytest_asyncio.fixture(loop_scope="function")
-    async def cas_robots() -> AsyncIterator[Robots]:
+    async def cas_robots(request: pytest.FixtureRequest) -> AsyncIterator[Robots]:
         """A :class:`~cas_async.testing.Robots` for the test, stopped and checked after it.
 
         ``robot = await cas_robots.start(1, [MyLayer()], transport=cas_memory)``;
         ``await cas_robots.swarm(robots)``. When the test ends every robot is stopped;
-        a layer that failed, or a drop for a reason not in ``cas_robots.allowed_drops``,
-        fails the test (with the reasons and counts, per robot).
+        a layer that failed, or a drop for a reason not allowed (by
+        ``@pytest.mark.cas_allow_drops("reason", ...)`` or
+        ``cas_robots.allowed_drops``), fails the test (with the reasons and counts,
+        per robot).
         """
         from cas_async.testing import Robots
 
-        robots = Robots()
+        allowed = {
+            reason for mark in request.node.iter_markers(DROPS_MARKER) for reason in mark.args
+        }
+        robots = Robots(allowed_drops=allowed)
         yield robots
         await robots.aclose()
 

@@ -2,39 +2,33 @@
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator, Callable, Sequence
-from contextlib import AsyncExitStack
+from collections.abc import Awaitable, Callable, Sequence
 from typing import Any
 
 import pytest
 
-from cas_async import Layer, MemoryTransport, Robot, Transport
+from cas_async import Layer, Robot, Transport
 from cas_async.scenario import _plots as plots
+from cas_async.testing import Robots
 from tests.stacks import STACK_MESSAGES
 
 
 @pytest.fixture
-async def start_robot() -> AsyncIterator[Callable[..., object]]:
-    """Factory: ``robot = await start_robot(robot_id, layers, ...)``; stopped at teardown."""
-    async with AsyncExitStack() as stack:
+def start_robot(cas_robots: Robots) -> Callable[..., Awaitable[Robot]]:
+    """``robot = await start_robot(robot_id, layers, ...)``: the plugin's ``cas_robots.start``.
 
-        async def start(
-            robot_id: int,
-            layers: Sequence[Layer],
-            *,
-            transport: Transport | None = None,
-            **kwargs: object,
-        ) -> Robot:
-            kwargs.setdefault("messages", STACK_MESSAGES)
-            robot = Robot(robot_id, layers, transport=transport, **kwargs)  # type: ignore[arg-type]
-            return await stack.enter_async_context(robot)
+    With this suite's test stack (``tests.stacks``) by default. The plugin stops the
+    robots at teardown and fails a test whose robots dropped messages it did not
+    allow (``cas_robots.allowed_drops``).
+    """
 
-        yield start
+    async def start(
+        robot_id: int, layers: Sequence[Layer], *, transport: Transport | None = None, **kwargs: Any
+    ) -> Robot:
+        kwargs.setdefault("messages", STACK_MESSAGES)
+        return await cas_robots.start(robot_id, layers, transport=transport, **kwargs)
 
-
-@pytest.fixture
-def memory() -> MemoryTransport:
-    return MemoryTransport()
+    return start
 
 
 @pytest.fixture

@@ -107,11 +107,6 @@ class Tap(Transport):
 
 
 @pytest.fixture
-def memory() -> MemoryTransport:
-    return MemoryTransport()
-
-
-@pytest.fixture
 async def endpoints() -> AsyncIterator[list[Endpoint]]:
     """Closes what a test opened."""
     opened: list[Endpoint] = []
@@ -132,9 +127,9 @@ async def _open(
 
 
 async def test_robots_with_the_same_key_exchange_requests_and_replies(
-    start_robot, memory: MemoryTransport
+    start_robot, cas_memory: MemoryTransport
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY)
+    transport = AuthenticatedTransport(cas_memory, KEY)
     a, b = recorders(2), recorders(2)
     robot_a = await start_robot(1, a, transport=transport)
     robot_b = await start_robot(2, b, transport=transport)
@@ -155,20 +150,20 @@ async def test_robots_with_the_same_key_exchange_requests_and_replies(
 
 
 async def test_the_wrapper_marks_the_inner_transport_and_mirrors_virtual_time(
-    memory: MemoryTransport,
+    cas_memory: MemoryTransport,
 ) -> None:
-    assert not memory.authenticated
-    transport = AuthenticatedTransport(memory, KEY)
-    assert memory.authenticated
+    assert not cas_memory.authenticated
+    transport = AuthenticatedTransport(cas_memory, KEY)
+    assert cas_memory.authenticated
     assert transport.authenticated
     assert transport.supports_virtual_time
     assert not AuthenticatedTransport(UdpTransport(), KEY).supports_virtual_time
 
 
 async def test_the_trailer_is_the_documented_wire_format(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    tap = Tap(memory)
+    tap = Tap(cas_memory)
     transport = AuthenticatedTransport(tap, KEY, counter_start=starts(1000, 0).__next__)
     sender = await _open(endpoints, transport, -7, RecordingSink())
     sink = RecordingSink()
@@ -201,40 +196,42 @@ async def test_an_inner_transport_too_small_for_the_trailer_is_refused() -> None
 
 
 @pytest.mark.parametrize("robot_id", [2**63, -(2**63) - 1], ids=["too-big", "too-small"])
-async def test_a_robot_id_beyond_8_bytes_is_refused(memory: MemoryTransport, robot_id: int) -> None:
+async def test_a_robot_id_beyond_8_bytes_is_refused(
+    cas_memory: MemoryTransport, robot_id: int
+) -> None:
     with pytest.raises(ConfigurationError, match=r"must be an int in -9223372036854775808\.\."):
-        await AuthenticatedTransport(memory, KEY).open(robot_id, RecordingSink())
+        await AuthenticatedTransport(cas_memory, KEY).open(robot_id, RecordingSink())
 
 
 async def test_sending_to_an_id_beyond_8_bytes_is_an_unknown_robot(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    sender = await _open(endpoints, AuthenticatedTransport(memory, KEY), 1, RecordingSink())
-    await _open(endpoints, memory, 2**63, RecordingSink())  # reachable, but not authenticated
+    sender = await _open(endpoints, AuthenticatedTransport(cas_memory, KEY), 1, RecordingSink())
+    await _open(endpoints, cas_memory, 2**63, RecordingSink())  # reachable, but not authenticated
     with pytest.raises(UnknownRobotError, match=r"robot 9223372036854775808 cannot be in an"):
         sender.send(2**63, b"hello")
 
 
-def test_a_key_must_be_a_swarm_key(memory: MemoryTransport) -> None:
+def test_a_key_must_be_a_swarm_key(cas_memory: MemoryTransport) -> None:
     with pytest.raises(ConfigurationError, match="needs a SwarmKey, got bytes"):
-        AuthenticatedTransport(memory, KEY.secret)  # type: ignore[arg-type]
+        AuthenticatedTransport(cas_memory, KEY.secret)  # type: ignore[arg-type]
     with pytest.raises(ConfigurationError, match="max_senders must be at least 1, got 0"):
-        AuthenticatedTransport(memory, KEY, max_senders=0)
+        AuthenticatedTransport(cas_memory, KEY, max_senders=0)
 
 
 @pytest.mark.parametrize("start", [-1, 2**64], ids=["negative", "too-big"])
 async def test_a_first_counter_beyond_8_unsigned_bytes_is_refused(
-    memory: MemoryTransport, start: int
+    cas_memory: MemoryTransport, start: int
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY, counter_start=lambda: start)
+    transport = AuthenticatedTransport(cas_memory, KEY, counter_start=lambda: start)
     with pytest.raises(ConfigurationError, match=rf"robot 1: first counter {start} is not in"):
         await transport.open(1, RecordingSink())
 
 
 async def test_an_exhausted_counter_says_so(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY, counter_start=lambda: 2**64 - 2)
+    transport = AuthenticatedTransport(cas_memory, KEY, counter_start=lambda: 2**64 - 2)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
     sender = await _open(endpoints, transport, 1, RecordingSink())
@@ -248,10 +245,14 @@ async def test_an_exhausted_counter_says_so(
 # -- without the key nothing gets through ------------------------------------------------
 
 
+@pytest.mark.cas_allow_drops("transport.auth.forged")
 async def test_a_robot_with_another_key_is_refused_as_forged(
-    start_robot, memory: MemoryTransport
+    start_robot, cas_memory: MemoryTransport
 ) -> None:
-    ours, theirs = AuthenticatedTransport(memory, KEY), AuthenticatedTransport(memory, OTHER_KEY)
+    ours, theirs = (
+        AuthenticatedTransport(cas_memory, KEY),
+        AuthenticatedTransport(cas_memory, OTHER_KEY),
+    )
     a, b = recorders(1), recorders(1)
     robot_a = await start_robot(1, a, transport=theirs)
     robot_b = await start_robot(2, b, transport=ours)
@@ -264,13 +265,14 @@ async def test_a_robot_with_another_key_is_refused_as_forged(
     assert ours.stats["auth.forged"] == theirs.stats["auth.forged"] == 1
 
 
+@pytest.mark.cas_allow_drops("transport.auth.forged", "decode.malformed")
 async def test_a_robot_without_a_key_is_refused_and_refuses(
-    start_robot, memory: MemoryTransport
+    start_robot, cas_memory: MemoryTransport
 ) -> None:
-    keyed = AuthenticatedTransport(memory, KEY)
+    keyed = AuthenticatedTransport(cas_memory, KEY)
     a, b = recorders(1), recorders(1)
     robot_a = await start_robot(1, a, transport=keyed)
-    robot_b = await start_robot(2, b, transport=memory)
+    robot_b = await start_robot(2, b, transport=cas_memory)
     a[0].send(2, Note("signed", []))
     b[0].send(1, Note("unsigned", []))
     await wait_all_tasks_blocked()
@@ -287,12 +289,12 @@ async def test_a_robot_without_a_key_is_refused_and_refuses(
     ids=["payload", "payload-end", "sender", "counter", "counter-end", "tag", "tag-end"],
 )
 async def test_an_altered_datagram_is_refused_as_forged(
-    memory: MemoryTransport, endpoints: list[Endpoint], index: int
+    cas_memory: MemoryTransport, endpoints: list[Endpoint], index: int
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY)
+    transport = AuthenticatedTransport(cas_memory, KEY)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     datagram = bytearray(sign(b"some payload", 1, 500, 2))
     datagram[index] ^= 0x01
     attacker.send(2, bytes(datagram))
@@ -305,12 +307,12 @@ async def test_an_altered_datagram_is_refused_as_forged(
 
 @pytest.mark.parametrize("size", [0, 1, TRAILER_SIZE - 1])
 async def test_a_datagram_shorter_than_the_trailer_is_refused(
-    memory: MemoryTransport, endpoints: list[Endpoint], size: int
+    cas_memory: MemoryTransport, endpoints: list[Endpoint], size: int
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY)
+    transport = AuthenticatedTransport(cas_memory, KEY)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     attacker.send(2, sign(b"", 1, 5, 2)[:size])
     await wait_all_tasks_blocked()
     assert sink.reasons == ["auth.too_short"]
@@ -319,12 +321,12 @@ async def test_a_datagram_shorter_than_the_trailer_is_refused(
 
 @pytest.mark.parametrize("cut", [1, 16], ids=["last-byte", "tag"])
 async def test_a_truncated_datagram_is_refused_as_forged(
-    memory: MemoryTransport, endpoints: list[Endpoint], cut: int
+    cas_memory: MemoryTransport, endpoints: list[Endpoint], cut: int
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY)
+    transport = AuthenticatedTransport(cas_memory, KEY)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     attacker.send(2, sign(b"a payload long enough", 1, 5, 2)[:-cut])
     await wait_all_tasks_blocked()
     assert sink.reasons == ["auth.forged"]
@@ -334,10 +336,11 @@ async def test_a_truncated_datagram_is_refused_as_forged(
 # -- replays -------------------------------------------------------------------------------
 
 
+@pytest.mark.cas_allow_drops("transport.auth.replay")
 async def test_a_recorded_datagram_sent_again_is_refused_as_replay(
-    start_robot, memory: MemoryTransport, endpoints: list[Endpoint]
+    start_robot, cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    tap = Tap(memory)
+    tap = Tap(cas_memory)
     transport = AuthenticatedTransport(tap, KEY)
     a, b = recorders(1), recorders(1)
     await start_robot(1, a, transport=transport)
@@ -345,7 +348,7 @@ async def test_a_recorded_datagram_sent_again_is_refused_as_replay(
     a[0].send(2, Note("once", []))
     await wait_all_tasks_blocked()
     ((_, _, recorded),) = tap.sent
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     attacker.send(2, recorded)
     attacker.send(2, recorded)
     await wait_all_tasks_blocked()
@@ -353,10 +356,11 @@ async def test_a_recorded_datagram_sent_again_is_refused_as_replay(
     assert robot_b.dropped == {"transport.auth.replay": 2}
 
 
+@pytest.mark.cas_allow_drops("transport.auth.forged")
 async def test_a_datagram_for_one_robot_does_not_verify_at_another(
-    start_robot, memory: MemoryTransport, endpoints: list[Endpoint]
+    start_robot, cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    tap = Tap(memory)
+    tap = Tap(cas_memory)
     transport = AuthenticatedTransport(tap, KEY)
     a, b, c = recorders(1), recorders(1), recorders(1)
     await start_robot(1, a, transport=transport)
@@ -365,7 +369,7 @@ async def test_a_datagram_for_one_robot_does_not_verify_at_another(
     a[0].send(2, Note("for 2 only", []))
     await wait_all_tasks_blocked()
     ((_, _, recorded),) = tap.sent
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     attacker.send(3, recorded)  # robot 3 never saw counter: only the tag can tell
     attacker.send(1, recorded)  # nor is it accepted back at its sender
     await wait_all_tasks_blocked()
@@ -375,12 +379,12 @@ async def test_a_datagram_for_one_robot_does_not_verify_at_another(
 
 
 async def test_reordering_within_the_window_is_accepted_and_older_is_stale(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY)
+    transport = AuthenticatedTransport(cas_memory, KEY)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     newest = 5000
     oldest_in_window = newest - WINDOW + 1
     order = [
@@ -407,12 +411,12 @@ async def test_reordering_within_the_window_is_accepted_and_older_is_stale(
 
 
 async def test_a_jump_far_ahead_forgets_the_window(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY)
+    transport = AuthenticatedTransport(cas_memory, KEY)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     top = 2**64 - 1
     for counter in (10, top, top - 1, 10, top - WINDOW):
         attacker.send(2, sign(b"", 1, counter, 2))
@@ -421,12 +425,12 @@ async def test_a_jump_far_ahead_forgets_the_window(
     assert sink.reasons == ["auth.stale", "auth.stale"]
 
 
-async def test_a_restarted_robot_is_accepted(start_robot, memory: MemoryTransport) -> None:
+async def test_a_restarted_robot_is_accepted(start_robot, cas_memory: MemoryTransport) -> None:
     # Robot 1 lives twice; its second life starts counting above where the first stopped.
-    first_life = AuthenticatedTransport(memory, KEY, counter_start=lambda: 1_000)
-    second_life = AuthenticatedTransport(memory, KEY, counter_start=lambda: 2_000)
+    first_life = AuthenticatedTransport(cas_memory, KEY, counter_start=lambda: 1_000)
+    second_life = AuthenticatedTransport(cas_memory, KEY, counter_start=lambda: 2_000)
     b = recorders(1)
-    robot_b = await start_robot(2, b, transport=AuthenticatedTransport(memory, KEY))
+    robot_b = await start_robot(2, b, transport=AuthenticatedTransport(cas_memory, KEY))
     for transport, text in ((first_life, "before"), (second_life, "after")):
         a = recorders(1)
         async with Robot(1, a, transport=transport, messages=STACK_MESSAGES):
@@ -437,12 +441,12 @@ async def test_a_restarted_robot_is_accepted(start_robot, memory: MemoryTranspor
 
 
 async def test_a_restart_that_counts_from_below_is_taken_for_a_replay(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
     # The documented assumption: counters start from the wall clock, which must not step back.
-    transport = AuthenticatedTransport(memory, KEY, counter_start=lambda: 1_000)
+    transport = AuthenticatedTransport(cas_memory, KEY, counter_start=lambda: 1_000)
     sink = RecordingSink()
-    await _open(endpoints, AuthenticatedTransport(memory, KEY), 2, sink)
+    await _open(endpoints, AuthenticatedTransport(cas_memory, KEY), 2, sink)
     for _ in range(2):
         sender = await transport.open(1, RecordingSink())
         sender.send(2, b"hi")
@@ -452,10 +456,11 @@ async def test_a_restart_that_counts_from_below_is_taken_for_a_replay(
     assert sink.reasons == ["auth.replay"]
 
 
+@pytest.mark.cas_allow_drops("spoofed_sender")
 async def test_a_key_holder_cannot_claim_another_robots_id_in_the_header(
-    start_robot, memory: MemoryTransport, endpoints: list[Endpoint]
+    start_robot, cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    tap = Tap(memory)
+    tap = Tap(cas_memory)
     transport = AuthenticatedTransport(tap, KEY)
     a, b = recorders(1), recorders(1)
     await start_robot(1, a, transport=transport)
@@ -466,25 +471,25 @@ async def test_a_key_holder_cannot_claim_another_robots_id_in_the_header(
     ((_, _, recorded),) = tap.sent
     # Robot 3 holds the key and re-signs robot 1's message as its own.
     payload = recorded[:-TRAILER_SIZE]
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     attacker.send(2, sign(payload, 3, 10**18, 2))
     await wait_all_tasks_blocked()
     assert [m.text for m in b[0].external] == ["from 1"]
     assert robot_b.dropped == {"spoofed_sender": 1}
 
 
-# -- memory: forged datagrams cannot grow state --------------------------------------------
+# -- cas_memory: forged datagrams cannot grow state --------------------------------------------
 
 
 async def test_forged_datagrams_do_not_take_places_in_the_sender_table(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
     # One place only: if forged datagrams took places, robot 1 would be evicted and its
     # recorded datagram accepted again.
-    transport = AuthenticatedTransport(memory, KEY, max_senders=1)
+    transport = AuthenticatedTransport(cas_memory, KEY, max_senders=1)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     recorded = sign(b"genuine", 1, 77, 2)
     attacker.send(2, recorded)
     for claimed in range(100, 1100):
@@ -497,12 +502,12 @@ async def test_forged_datagrams_do_not_take_places_in_the_sender_table(
 
 
 async def test_the_least_recently_heard_sender_is_forgotten_beyond_the_bound(
-    memory: MemoryTransport, endpoints: list[Endpoint]
+    cas_memory: MemoryTransport, endpoints: list[Endpoint]
 ) -> None:
-    transport = AuthenticatedTransport(memory, KEY, max_senders=2)
+    transport = AuthenticatedTransport(cas_memory, KEY, max_senders=2)
     sink = RecordingSink()
     await _open(endpoints, transport, 2, sink)
-    attacker = await _open(endpoints, memory, 66, RecordingSink())
+    attacker = await _open(endpoints, cas_memory, 66, RecordingSink())
     for sender, counter in ((1, 10), (3, 10), (1, 11), (4, 10)):  # 3 is heard least recently
         attacker.send(2, sign(b"", sender, counter, 2))
     attacker.send(2, sign(b"", 1, 11, 2))  # still tracked: a replay
@@ -522,6 +527,7 @@ async def _until(condition, timeout: float = 5.0) -> None:
             await asyncio.sleep(0.001)
 
 
+@pytest.mark.cas_allow_drops("transport.auth.replay", "transport.auth.forged")
 async def test_over_udp_requests_work_and_a_raw_replay_is_refused(start_robot) -> None:
     udp = UdpTransport()
     tap = Tap(udp)

@@ -154,6 +154,7 @@ async def test_request_without_reply_times_out(start_robot) -> None:
         pytest.param(1, "to", 1, "to_self", id="to-its-own-level"),
     ],
 )
+@pytest.mark.cas_allow_drops("no_layer_above", "no_layer_below", "no_such_layer", "to_self")
 async def test_internal_rule_violations_are_dropped_and_counted(
     start_robot, caplog, sender, how, level, reason
 ) -> None:
@@ -171,9 +172,10 @@ async def test_internal_rule_violations_are_dropped_and_counted(
     assert "Sender(L" in caplog.text
 
 
-async def test_external_send_to_own_robot_is_a_violation(start_robot, memory) -> None:
+@pytest.mark.cas_allow_drops("to_own_robot")
+async def test_external_send_to_own_robot_is_a_violation(start_robot, cas_memory) -> None:
     stack = recorders(2)
-    robot = await start_robot(1, stack, transport=memory)
+    robot = await start_robot(1, stack, transport=cas_memory)
     stack[0].send(1, Note("me", []))
     await wait_all_tasks_blocked()
     assert robot.dropped == {"to_own_robot": 1}
@@ -278,6 +280,7 @@ def test_forwarding_does_not_wait_for_a_busy_intermediate_layer() -> None:
     assert cas_async.run(main(), virtual=True) < 1.0
 
 
+@pytest.mark.cas_allow_drops("to_own_robot", "no_such_layer")
 async def test_rule_breaking_requests_raise_rule_violation(start_robot) -> None:
     stack = recorders(2)
     robot = await start_robot(1, stack, transport=MemoryTransport())

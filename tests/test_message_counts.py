@@ -18,11 +18,13 @@ class Asker(Recorder):
             self.broadcast(Note("all", []))
 
 
-async def test_counts_by_class_internal_and_external(memory: MemoryTransport) -> None:
+async def test_counts_by_class_internal_and_external(cas_memory: MemoryTransport) -> None:
     def stack() -> list[Layer]:
         return [Asker(), Recorder(), Recorder()]
 
-    swarm = Swarm(Robot(i, stack(), transport=memory, messages=STACK_MESSAGES) for i in (1, 2, 3))
+    swarm = Swarm(
+        Robot(i, stack(), transport=cas_memory, messages=STACK_MESSAGES) for i in (1, 2, 3)
+    )
     async with swarm:
         await wait_all_tasks_blocked()
         one = swarm[1].message_counts()
