@@ -24,7 +24,7 @@ from cas_async import (
     VirtualClock,
 )
 from cas_async.sim import Environment, SimulatedHands
-from tests.sim.virtual import virtual
+from tests.sim.conftest import Sim
 
 REACH = 1.0
 
@@ -202,7 +202,8 @@ def hands(env: Environment, robot_id: int, clock: VirtualClock) -> SimulatedHand
     return SimulatedHands(env, robot_id, clock, reach=REACH)
 
 
-def test_the_simulated_hands_hold_out_and_withdraw() -> None:
+@pytest.mark.cas_virtual
+async def test_the_simulated_hands_hold_out_and_withdraw(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[object]:
         env.items.subscribe(lambda _: env.items.check())
         env.add_robot(2, Pose(0.5, 0))
@@ -224,16 +225,17 @@ def test_the_simulated_hands_hold_out_and_withdraw() -> None:
         log += [await giver.items(), await keeper.items()]
         return log
 
-    assert virtual(main) == [(1,), (2,), (3,), (2,)]
+    assert await main(*sim) == [(1,), (2,), (3,), (2,)]
 
 
-def test_the_simulated_hands_refuse_unknown_givers() -> None:
+@pytest.mark.cas_virtual
+async def test_the_simulated_hands_refuse_unknown_givers(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
         robot = hands(env, 1, clock)
         with pytest.raises(UnknownRobotError, match="robot 9 is not in the environment"):
             await robot.accept_from(9)
 
-    virtual(main)
+    await main(*sim)
 
 
 class Hardware(Middleware):

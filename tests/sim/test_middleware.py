@@ -22,23 +22,25 @@ from cas_async import (
     VirtualClock,
 )
 from cas_async.sim import Environment, Motion, SimulatedMiddleware
-from tests.sim.virtual import virtual
+from tests.sim.conftest import Sim
 
 PI = math.pi
 
 
-def test_a_move_ends_exactly_after_its_closed_form_duration() -> None:
+@pytest.mark.cas_virtual
+async def test_a_move_ends_exactly_after_its_closed_form_duration(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> tuple[float, Pose, Pose]:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=PI / 2, speed_profile=ConstantSpeed(2))
         reached = await mw.move_to(0, 10)  # a quarter turn in 1 s, then 10 at 2 in 5 s
         return clock.now(), reached, mw.pose()
 
-    now, reached, pose = virtual(main)
+    now, reached, pose = await main(*sim)
     assert now == 6.0
     assert reached == pose == Pose(0, 10, PI / 2)
 
 
-def test_the_pose_is_exact_while_the_robot_moves() -> None:
+@pytest.mark.cas_virtual
+async def test_the_pose_is_exact_while_the_robot_moves(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[Pose]:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=PI / 2, speed_profile=ConstantSpeed(2))
         move = asyncio.create_task(mw.move_to(0, 10))
@@ -49,24 +51,26 @@ def test_the_pose_is_exact_while_the_robot_moves() -> None:
         await move
         return seen
 
-    rotating, translating, arrived, later = virtual(main)
+    rotating, translating, arrived, later = await main(*sim)
     assert (rotating.x, rotating.y, rotating.heading) == pytest.approx((0, 0, PI / 4))
     assert (translating.x, translating.y) == pytest.approx((0, 5))
     assert arrived == later == Pose(0, 10, PI / 2)
 
 
-def test_rotate_to_takes_the_short_way_at_the_turn_rate() -> None:
+@pytest.mark.cas_virtual
+async def test_rotate_to_takes_the_short_way_at_the_turn_rate(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> tuple[float, Pose]:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=0.5, speed_profile=ConstantSpeed(1))
         pose = await mw.rotate_to(-PI / 2)
         return clock.now(), pose
 
-    now, pose = virtual(main)
+    now, pose = await main(*sim)
     assert now == pytest.approx(PI)
     assert pose == Pose(0, 0, -PI / 2)
 
 
-def test_fatigue_carries_across_moves_until_the_profile_is_replaced() -> None:
+@pytest.mark.cas_virtual
+async def test_fatigue_carries_across_moves_until_the_profile_is_replaced(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[object]:
         mw = SimulatedMiddleware(
             env, 1, clock, turn_rate=math.inf, speed_profile=Decelerating(5, 1, 1)
@@ -81,7 +85,7 @@ def test_fatigue_carries_across_moves_until_the_profile_is_replaced() -> None:
         log += [clock.now(), mw.speed_profile]
         return log
 
-    assert virtual(main) == [
+    assert await main(*sim) == [
         2.0,
         Decelerating(3, 1, 1),
         6.0,
@@ -91,16 +95,18 @@ def test_fatigue_carries_across_moves_until_the_profile_is_replaced() -> None:
     ]
 
 
-def test_rotation_does_not_age_the_profile() -> None:
+@pytest.mark.cas_virtual
+async def test_rotation_does_not_age_the_profile(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> object:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=1.0, speed_profile=Decelerating(5, 1, 1))
         await mw.rotate_to(2.0)
         return mw.speed_profile
 
-    assert virtual(main) == Decelerating(5, 1, 1)
+    assert await main(*sim) == Decelerating(5, 1, 1)
 
 
-def test_a_profile_set_during_a_move_wins_over_ageing() -> None:
+@pytest.mark.cas_virtual
+async def test_a_profile_set_during_a_move_wins_over_ageing(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> tuple[object, float]:
         mw = SimulatedMiddleware(
             env, 1, clock, turn_rate=math.inf, speed_profile=Decelerating(5, 1, 1)
@@ -111,7 +117,7 @@ def test_a_profile_set_during_a_move_wins_over_ageing() -> None:
         await move
         return mw.speed_profile, clock.now()
 
-    assert virtual(main) == (ConstantSpeed(4), 2.0)
+    assert await main(*sim) == (ConstantSpeed(4), 2.0)
 
 
 def test_many_robots_move_concurrently_and_each_ends_on_time() -> None:
@@ -153,7 +159,8 @@ def test_many_robots_move_concurrently_and_each_ends_on_time() -> None:
     assert all(snapshot[rid] == plans[rid][1] for rid in plans)
 
 
-def test_robots_within_sees_the_other_robots_now() -> None:
+@pytest.mark.cas_virtual
+async def test_robots_within_sees_the_other_robots_now(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[list[int]]:
         env.add_robot(2, Pose(10, 0))
         env.add_robot(3, Pose(-1, 0), mobile=False)
@@ -168,10 +175,11 @@ def test_robots_within_sees_the_other_robots_now() -> None:
         await move
         return seen
 
-    assert virtual(main) == [[3, 2], [3]]
+    assert await main(*sim) == [[3, 2], [3]]
 
 
-def test_a_second_move_while_moving_is_refused() -> None:
+@pytest.mark.cas_virtual
+async def test_a_second_move_while_moving_is_refused(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=1, speed_profile=ConstantSpeed(1))
         move = asyncio.create_task(mw.move_to(5, 0))
@@ -181,10 +189,11 @@ def test_a_second_move_while_moving_is_refused() -> None:
         await move
         assert mw.pose() == Pose(5, 0, 0)
 
-    virtual(main)
+    await main(*sim)
 
 
-def test_an_immobile_robot_only_accepts_moves_that_change_nothing() -> None:
+@pytest.mark.cas_virtual
+async def test_an_immobile_robot_only_accepts_moves_that_change_nothing(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
         env.add_robot(9, Pose(2, 2, 1.0), mobile=False)
         mw = SimulatedMiddleware(env, 9, clock, turn_rate=1, speed_profile=ConstantSpeed(1))
@@ -195,7 +204,7 @@ def test_an_immobile_robot_only_accepts_moves_that_change_nothing() -> None:
             await mw.rotate_to(0.0)
         assert clock.now() == 0.0
 
-    virtual(main)
+    await main(*sim)
 
 
 def test_it_runs_on_scaled_real_time_too() -> None:
@@ -243,7 +252,8 @@ def test_invalid_construction(kwargs: dict[str, Any], error: type[Exception], me
         SimulatedMiddleware(env, clock=VirtualClock(), **arguments)
 
 
-def test_non_finite_targets_are_refused() -> None:
+@pytest.mark.cas_virtual
+async def test_non_finite_targets_are_refused(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=1, speed_profile=ConstantSpeed(1))
         with pytest.raises(SimulationError, match="x must be a finite number"):
@@ -253,4 +263,4 @@ def test_non_finite_targets_are_refused() -> None:
         with pytest.raises(SimulationError, match="radius must be >= 0"):
             await mw.robots_within(-1)
 
-    virtual(main)
+    await main(*sim)

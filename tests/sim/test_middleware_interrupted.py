@@ -10,12 +10,13 @@ import pytest
 import cas_async
 from cas_async import Clock, ConstantSpeed, Decelerating, Pose, VirtualClock
 from cas_async.sim import Environment, SimulatedMiddleware
-from tests.sim.virtual import virtual
+from tests.sim.conftest import Sim
 
 PI = math.pi
 
 
-def test_cancelling_a_move_leaves_the_robot_where_it_was_then() -> None:
+@pytest.mark.cas_virtual
+async def test_cancelling_a_move_leaves_the_robot_where_it_was_then(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[object]:
         mw = SimulatedMiddleware(
             env, 1, clock, turn_rate=PI / 2, speed_profile=Decelerating(5, 1, 1)
@@ -32,14 +33,15 @@ def test_cancelling_a_move_leaves_the_robot_where_it_was_then() -> None:
         log.append(mw.pose())
         return log
 
-    now, stopped, profile, later, back = virtual(main)
+    now, stopped, profile, later, back = await main(*sim)
     assert now == 3.0
     assert stopped == later == Pose(0, 8, PI / 2)  # 2 s of translation: 5*2 - 2
     assert profile == Decelerating(3, 1, 1)  # aged by the 2 s it translated
     assert back == Pose(0, 0, -PI / 2)
 
 
-def test_cancelling_during_the_rotation_stops_the_turn() -> None:
+@pytest.mark.cas_virtual
+async def test_cancelling_during_the_rotation_stops_the_turn(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> Pose:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=1.0, speed_profile=ConstantSpeed(1))
         move = asyncio.create_task(mw.rotate_to(2.0))
@@ -48,10 +50,11 @@ def test_cancelling_during_the_rotation_stops_the_turn() -> None:
         await asyncio.gather(move, return_exceptions=True)
         return mw.pose()
 
-    assert virtual(main) == Pose(0, 0, 0.5)
+    assert await main(*sim) == Pose(0, 0, 0.5)
 
 
-def test_timeouts_interrupt_a_move_the_same_way() -> None:
+@pytest.mark.cas_virtual
+async def test_timeouts_interrupt_a_move_the_same_way(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> Pose:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=math.inf, speed_profile=ConstantSpeed(1))
         with pytest.raises(TimeoutError):
@@ -59,7 +62,7 @@ def test_timeouts_interrupt_a_move_the_same_way() -> None:
                 await mw.move_to(10, 0)
         return mw.pose()
 
-    assert virtual(main) == Pose(4, 0, 0)
+    assert await main(*sim) == Pose(4, 0, 0)
 
 
 class EarlyClock(Clock):
@@ -93,7 +96,8 @@ def test_a_clock_that_wakes_early_neither_breaks_nor_shortens_moves() -> None:
     assert second == now == Pose(2, 3, PI / 2)
 
 
-def test_cancellation_survives_the_robot_leaving_the_environment() -> None:
+@pytest.mark.cas_virtual
+async def test_cancellation_survives_the_robot_leaving_the_environment(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
         mw = SimulatedMiddleware(env, 1, clock, turn_rate=1, speed_profile=ConstantSpeed(1))
         move = asyncio.create_task(mw.move_to(5, 0))
@@ -103,4 +107,4 @@ def test_cancellation_survives_the_robot_leaving_the_environment() -> None:
         with pytest.raises(asyncio.CancelledError):
             await move
 
-    virtual(main)
+    await main(*sim)

@@ -17,7 +17,7 @@ from cas_async import (
     VirtualClock,
 )
 from cas_async.sim import Environment, ItemEventKind, SimulatedHands, SimulatedMiddleware
-from tests.sim.virtual import virtual
+from tests.sim.conftest import Sim
 
 
 def middleware(env: Environment, robot_id: int, clock: VirtualClock) -> SimulatedMiddleware:
@@ -37,7 +37,8 @@ def test_hands_declare_every_item_operation_and_the_middleware_none() -> None:
     assert operations.isdisjoint(Middleware.__abstractmethods__)
 
 
-def test_a_robot_carries_an_item_to_another_and_hands_it_over() -> None:
+@pytest.mark.cas_virtual
+async def test_a_robot_carries_an_item_to_another_and_hands_it_over(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> list[object]:
         env.items.subscribe(lambda _: env.items.check())
         env.add_robot(2, Pose(5, 0))
@@ -54,7 +55,7 @@ def test_a_robot_carries_an_item_to_another_and_hands_it_over() -> None:
         log += [await keeper.items(), [(e.t, e.kind, e.robot) for e in env.items.history(item)]]
         return log
 
-    assert virtual(main) == [
+    assert await main(*sim) == [
         (1,),
         (),
         5.0,
@@ -69,7 +70,8 @@ def test_a_robot_carries_an_item_to_another_and_hands_it_over() -> None:
     ]
 
 
-def test_a_hand_over_happens_mid_move_where_the_robots_are_then() -> None:
+@pytest.mark.cas_virtual
+async def test_a_hand_over_happens_mid_move_where_the_robots_are_then(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> tuple[float, float, tuple[int, ...]]:
         env.add_robot(2, Pose(10, 0))
         walker = middleware(env, 1, clock)
@@ -85,10 +87,11 @@ def test_a_hand_over_happens_mid_move_where_the_robots_are_then() -> None:
         await move
         return clock.now(), moved_on, await hands(env, 1, clock).items()
 
-    assert virtual(main) == (20.0, 9.5, (1,))
+    assert await main(*sim) == (20.0, 9.5, (1,))
 
 
-def test_items_are_listed_in_the_order_received() -> None:
+@pytest.mark.cas_virtual
+async def test_items_are_listed_in_the_order_received(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> tuple[int, ...]:
         env.add_robot(2, Pose(0, 0))
         me, other = hands(env, 1, clock), hands(env, 2, clock)
@@ -99,10 +102,11 @@ def test_items_are_listed_in_the_order_received() -> None:
         assert (first, second, third) == (1, 2, 3)
         return await me.items()
 
-    assert virtual(main) == (2, 1, 3)
+    assert await main(*sim) == (2, 1, 3)
 
 
-def test_refused_item_calls_leave_everything_in_place() -> None:
+@pytest.mark.cas_virtual
+async def test_refused_item_calls_leave_everything_in_place(sim: Sim) -> None:
     async def main(env: Environment, clock: VirtualClock) -> None:
         env.add_robot(2, Pose(0, 0))
         me, other = hands(env, 1, clock), hands(env, 2, clock)
@@ -118,7 +122,7 @@ def test_refused_item_calls_leave_everything_in_place() -> None:
         assert await me.items() == (item,)
         assert env.items.transfers == env.items.retired == 0
 
-    virtual(main)
+    await main(*sim)
 
 
 @pytest.mark.parametrize(
