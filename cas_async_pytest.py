@@ -13,6 +13,7 @@ test, pytest-asyncio makes its loops exactly as it would without this plugin.
 from __future__ import annotations
 
 import asyncio
+import inspect
 from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any, Final
 
@@ -52,8 +53,8 @@ class _LoopFactories:
             from cas_async import VirtualTimeLoop
 
             return {MARKER: VirtualTimeLoop}
-        hook = config.pluginmanager.hook.pytest_asyncio_loop_factories
-        if len(hook.get_hookimpls()) > 1:
+        # The implementations this test sees (a conftest applies to its own directory).
+        if len(item.ihook.pytest_asyncio_loop_factories.get_hookimpls()) > 1:
             return None  # another plugin, or the project's conftest, decides
         # Nobody else answers, and pytest-asyncio requires an answer once anyone
         # implements the hook: the loop it would make without any (the policy's).
@@ -70,7 +71,10 @@ def pytest_pycollect_makeitem(
     (in its own ``pytest_generate_tests``, which may run before this plugin's): the
     hook object is registered here, around the collection of the marked function.
     """
-    marks = getattr(obj, "pytestmark", [])
+    try:
+        marks = getattr(obj, "pytestmark", [])
+    except Exception:  # an object with a strange __getattr__: none of ours
+        marks = []
     if collector.get_closest_marker(MARKER) is not None or any(
         getattr(mark, "name", None) == MARKER for mark in marks
     ):
@@ -92,7 +96,7 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
     marker = metafunc.definition.get_closest_marker(MARKER)
     if marker is None:
         return
-    if not asyncio.iscoroutinefunction(metafunc.function):
+    if not inspect.iscoroutinefunction(metafunc.function):
         raise pytest.UsageError(
             f"{metafunc.definition.nodeid}: @pytest.mark.{MARKER} is for async def tests; "
             "a plain test can call cas_async.run(main(), virtual=True)"
@@ -159,6 +163,8 @@ def _robots_fixture() -> Any:
         """A :class:`~cas_async.testing.Robots` for the test, stopped and checked after it.
 
         ``robot = await cas_robots.start(1, [MyLayer()], transport=cas_memory)``;
+        it lives in the test's loop (function scope: a test on a module-scoped loop
+        starts its robots with a :class:`~cas_async.testing.Robots` of its own);
         ``await cas_robots.swarm(robots)``. When the test ends every robot is stopped;
         a layer that failed, or a drop for a reason not allowed (by
         ``@pytest.mark.cas_allow_drops("reason", ...)`` or

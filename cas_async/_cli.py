@@ -161,22 +161,23 @@ def _command_run(
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE
     out = args.out or Path("runs") / f"{scenario.path.stem}-seed{scenario.run.seed}"
-    try:  # before the run: a long run must not end in "cannot write"
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
-        return EXIT_USAGE
     stop = asyncio.Event()
     started = time.perf_counter()
 
     def abandon_build() -> None:
         """The verdict of a run interrupted before its robots existed."""
-        write_results(_not_built(scenario, time.perf_counter() - started), out)
+        if out.is_dir():  # the signal may have come before it was made
+            write_results(_not_built(scenario, time.perf_counter() - started), out)
+            print(f"wrote results.json to {out}/", file=stdout)
         print("interrupted while building the robots: nothing ran", file=stderr)
-        print(f"wrote results.json to {out}/", file=stdout)
 
     try:  # synchronous, before the loop starts: a signal abandons it
         with _leaving_at_once(interrupts, owns_process, (stdout, stderr), abandon_build):
+            try:  # before the run: a long run must not end in "cannot write"
+                out.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
+                return EXIT_USAGE
             scenario_run = ScenarioRun(
                 scenario,
                 key=key,
@@ -385,8 +386,9 @@ def main(
     """
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr
-    interrupts = Interrupts().install()
+    interrupts = Interrupts()
     try:
+        interrupts.install()
         with _leaving_at_once(interrupts, owns_process, (stdout, stderr)):  # nothing began
             args = _parser().parse_args(argv)
             if args.command == "run":

@@ -168,16 +168,20 @@ def _cost(data: bytes) -> int:
 class ReplyCache:
     """The encoded replies to the requests answered lately, kept by age within a budget.
 
-    A reply is kept at least ``keep_for`` seconds (of whatever clock gives ``now``),
-    and at most about twice that: an asker that lost it re-sends its request within
-    its retries, and however many other requests it asked meanwhile, the reply is
-    still there. The byte budget bounds memory whatever the traffic.
+    A reply is kept at least ``keep_for`` seconds (of whatever clock gives ``now``):
+    an asker that lost it re-sends its request within its retries, and however many
+    other requests it asked meanwhile, the reply is still there. The byte budget
+    bounds memory whatever the traffic.
 
-    Replies are kept in two generations: the current one, and the one before.
-    Once the current one is ``keep_for`` old, or holds half the budget, it becomes
-    the one before, and the one before is dropped whole. Keeping a reply is one
+    Replies are kept in two generations: the current one, and the one before. When
+    a reply is kept and the current generation is ``keep_for`` old, or would hold
+    more than half the budget, it becomes the one before, and the one before is
+    dropped whole. So replies go only as later ones are kept (a robot that stops
+    answering keeps its last ones, within the budget), keeping a reply is one
     dictionary insertion (a robot keeps every reply it sends), and forgetting costs
-    nothing per reply. When the budget is what runs out, the older half goes at once.
+    nothing per reply. When the budget is what runs out, the older half goes at
+    once. With ``keep_for`` 0 the last reply or two stay; with a budget too small
+    for any reply, the last one.
 
     Args:
         keep_for: how long a reply is kept, at least.

@@ -75,11 +75,11 @@ class Robot:
             are never dropped).
         restart: restart a layer that raises, within these limits, instead of
             stopping the robot (see :class:`~cas_async.RestartPolicy`).
-        reply_memory: simulated seconds a reply to another robot is kept at least
-            (about twice that at most), to answer a repetition of its request (its
-            asker lost the reply): longer than any asker's retries last
-            (``(retries + 1) * timeout``). Kept replies take at most about 1 MiB;
-            beyond it the older half goes.
+        reply_memory: simulated seconds a reply to another robot is kept at least,
+            to answer a repetition of its request (its asker lost the reply): longer
+            than any asker's retries last (``(retries + 1) * timeout``). Older
+            replies go as new ones are kept (see :class:`~cas_async._dedup.ReplyCache`);
+            kept replies take at most about 1 MiB, beyond which the older half goes.
     """
 
     def __init__(

@@ -226,7 +226,7 @@ def test_reply_cache_counts_a_reply_kept_again_once() -> None:
     assert cache.size == 6 + ReplyCache.OVERHEAD
 
 
-def test_reply_cache_with_no_memory_keeps_the_last_reply_only() -> None:
+def test_reply_cache_with_no_memory_keeps_only_the_last_replies() -> None:
     cache = ReplyCache(keep_for=0.0)
     cache.keep(1, 1, b"a", 0.0)
     cache.keep(1, 2, b"b", 0.0)

@@ -91,3 +91,22 @@ def test_the_harness_names_what_does_not_exist() -> None:
         harness.sent_to(4)
     with pytest.raises(ValueError, match="level 2 is not in a stack of 2"):
         LayerHarness(Worker(), level=2, height=2)
+
+
+@pytest.mark.cas_virtual
+async def test_a_failing_test_body_is_not_hidden_by_what_the_harness_finds() -> None:
+    with pytest.raises(AssertionError, match="the test's own") as caught:
+        async with LayerHarness(Worker(), level=0, height=2, messages=[Job, Done]) as h:
+            h.from_below(Job(-1))
+            await h.settle()
+            raise AssertionError("the test's own")
+    assert "job -1" in "".join(caught.value.__notes__)
+
+
+@pytest.mark.cas_virtual
+async def test_the_harness_takes_the_drops_a_test_expects() -> None:
+    async with LayerHarness(
+        Worker(), level=0, height=2, messages=[Job, Done], allowed_drops={"unknown_robot"}
+    ) as h:
+        h.layer.send(9, Job(1))  # nobody is robot 9
+        await h.settle()

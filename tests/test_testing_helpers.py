@@ -66,6 +66,14 @@ async def test_wait_all_tasks_blocked_does_not_move_time_past_a_timer() -> None:
     assert fired == []  # waiting on a timer is being blocked
 
 
+async def test_two_tasks_may_wait_for_the_loop_at_once() -> None:
+    # Each would see the other's polling as work, were there two pollers.
+    done: list[int] = []
+    asyncio.get_running_loop().call_soon(done.append, 1)
+    await asyncio.gather(wait_all_tasks_blocked(), wait_all_tasks_blocked())
+    assert done == [1]
+
+
 async def spin() -> None:
     while True:
         await asyncio.sleep(0)

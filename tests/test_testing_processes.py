@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -20,12 +23,31 @@ async def test_the_peer_is_ready_then_ended() -> None:
     assert process.returncode is not None  # killed on the way out, not left behind
 
 
+def alive(token: str) -> list[str]:
+    """The processes whose command line holds ``token``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        with contextlib.suppress(OSError):
+            if entry.name.isdigit() and token in (entry / "cmdline").read_text():
+                found.append(entry.name)
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
 async def test_a_peer_that_is_never_ready_times_out_and_is_ended() -> None:
-    seen = []
+    token = f"never-ready-{os.getpid()}"
     with pytest.raises(TimeoutError, match=r"did not print 'ready' within 0\.5 s"):
-        async with peer_process(PYTHON, "-c", "import time; time.sleep(60)", timeout=0.5) as p:
-            seen.append(p)
-    assert seen == []
+        async with peer_process(
+            PYTHON, "-c", f"import time; time.sleep(60)  # {token}", timeout=0.5
+        ):
+            raise AssertionError("not reached")
+    assert alive(token) == []
+
+
+async def test_a_chatty_peer_does_not_block_on_its_stderr() -> None:
+    script = "import sys; sys.stderr.write('x' * 1_000_000); sys.stderr.flush(); print('ready')"
+    async with peer_process(PYTHON, "-c", script, timeout=10.0) as process:
+        assert process.returncode is None or process.returncode == 0
 
 
 async def test_a_peer_that_dies_first_says_why() -> None:

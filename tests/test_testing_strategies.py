@@ -46,6 +46,7 @@ class KitchenSink(Message):
     finite: Annotated[float, Finite]
     seats: Annotated[int, Bounds(ge=1, le=8)]
     share: Annotated[float, Bounds(gt=0, lt=1)]
+    few: Annotated[int, Bounds(gt=0, lt=3)]
 
 
 SINK_MESSAGES = [KitchenSink, Inner]
@@ -71,6 +72,7 @@ def test_drawn_values_keep_their_bounds(msg: KitchenSink) -> None:
     assert math.isfinite(msg.finite)
     assert 1 <= msg.seats <= 8
     assert 0 < msg.share < 1
+    assert msg.few in (1, 2)
     assert msg.colour in (Colour.RED, Colour.BLUE)
 
 

@@ -193,22 +193,26 @@ class ScenarioRun:
         """Starts the robots; when ``stop`` is set meanwhile, the start is undone instead."""
         # While the swarm runs, the collector's youngest generation is sized to it.
         self._gc.enter_context(young_generation_for(len(self._swarm)))
-        starting = asyncio.ensure_future(self._swarm.__aenter__())
-        stopped = asyncio.ensure_future(self._stop.wait())
         try:
-            await asyncio.wait((starting, stopped), return_when=asyncio.FIRST_COMPLETED)
-        finally:
-            stopped.cancel()
-            if not starting.done():
-                starting.cancel()  # the swarm closes what it had opened
-                with contextlib.suppress(asyncio.CancelledError):
-                    await starting
-        if starting.cancelled():
-            return self
-        starting.result()  # its error, if the start failed
-        self._started_swarm = True
-        if self._trace_path is not None:
-            self._trace_csv = TraceCsv(self.trace, self._trace_path)
+            starting = asyncio.ensure_future(self._swarm.__aenter__())
+            stopped = asyncio.ensure_future(self._stop.wait())
+            try:
+                await asyncio.wait((starting, stopped), return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                stopped.cancel()
+                if not starting.done():
+                    starting.cancel()  # the swarm closes what it had opened
+                    with contextlib.suppress(asyncio.CancelledError):
+                        await starting
+            if starting.cancelled():
+                return self
+            starting.result()  # its error, if the start failed
+            self._started_swarm = True
+            if self._trace_path is not None and not self._ended:  # not interrupted meanwhile
+                self._trace_csv = TraceCsv(self.trace, self._trace_path)
+        except BaseException as exc:  # no __aexit__ follows a failed __aenter__: undo here
+            await self.__aexit__(type(exc), exc, exc.__traceback__)
+            raise
         return self
 
     async def until_done(self) -> RunResult:
@@ -261,7 +265,11 @@ class ScenarioRun:
         _measure(result, self._mission, self._swarm, self.environment, self._clock.now())
         self._count_faults()
         if self._trace_csv is not None:
-            self._trace_csv.close()
+            try:
+                self._trace_csv.close()
+            except BaseException:
+                self._trace_csv.discard()
+                raise
         result.wall_time = self._wall_clock() - self._started
         self._close_progress(final=True)
         return result
@@ -326,7 +334,8 @@ async def run_scenario(
     virtual=s.run.virtual)``. While the swarm runs, the garbage collector's
     youngest generation is sized to the swarm (see :mod:`.gc_policy`): the
     process-wide threshold is raised for thousands of robots, then restored.
-    The arguments are :class:`ScenarioRun`'s, which takes the same steps one by one.
+    The arguments are :class:`ScenarioRun`'s (all but ``trace_csv``: the trace is
+    returned), which takes the same steps one by one.
     """
     run = ScenarioRun(
         scenario,

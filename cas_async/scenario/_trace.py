@@ -222,7 +222,12 @@ class Trace:
         atomically: an interrupted write leaves the previous file (or none).
         :class:`TraceCsv` writes the same file as the samples come.
         """
-        TraceCsv(self, path).close()
+        writer = TraceCsv(self, path)
+        try:
+            writer.close()
+        except BaseException:  # also on Ctrl-C: the temporary file must not stay
+            writer.discard()
+            raise
 
     def in_time_order(
         self, sample: int = 0, snapshot: int = 0

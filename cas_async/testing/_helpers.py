@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import os
 import typing
+import weakref
 from collections import Counter
 from collections.abc import AsyncIterator, Callable, Collection, Iterable, Mapping, Sequence
 from contextlib import AsyncExitStack, asynccontextmanager
@@ -17,6 +18,7 @@ import numpy as np
 
 from .._clock import Clock, VirtualClock
 from .._codec import Codec
+from .._errors import LayerError
 from .._layer import Layer
 from .._message import Message, spec_of
 from .._robot import Robot
@@ -66,8 +68,22 @@ async def wait_all_tasks_blocked() -> None:
     if isinstance(loop, VirtualTimeLoop):  # it knows when it is idle
         await loop.idle()
         return
-    # In real time: the stdlib loop's queue of ready callbacks and heap of timers,
-    # read only, after each pass.
+    # In real time one task per loop watches (two would each see the other busy);
+    # every caller waits for its verdict.
+    probe = _probes.get(loop)
+    if probe is None or probe.done():
+        probe = _probes[loop] = loop.create_task(_probe(loop))
+    await asyncio.shield(probe)
+
+
+_probes: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, asyncio.Task[None]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+async def _probe(loop: asyncio.AbstractEventLoop) -> None:
+    # The stdlib loop's queue of ready callbacks and heap of timers (no public API
+    # shows them), read only, after each pass.
     ready = getattr(loop, "_ready", None)
     scheduled = getattr(loop, "_scheduled", None)
     if ready is None or scheduled is None:
@@ -95,16 +111,18 @@ async def run_until(
 ) -> None:
     """Lets the robots run until ``condition()`` is true, for ``timeout`` seconds at most.
 
-    The condition is checked whenever every task is blocked, and every ``step``
-    seconds. Seconds are the clock's (simulated) when ``clock`` is given, else the
-    loop's (simulated on the virtual-time loop).
+    The condition is checked whenever every task is blocked: on the virtual-time
+    loop at every instant something happens (time jumps from one timer to the
+    next), on other loops also every ``step`` seconds. Seconds are the clock's
+    (simulated) when ``clock`` is given, else the loop's (simulated on the
+    virtual-time loop).
 
     Raises:
         RunUntilTimeout: still false after ``timeout`` seconds, naming ``what`` (or
             the condition).
     """
-    now: Callable[[], float] = clock.now if clock is not None else asyncio.get_running_loop().time
-    sleep = clock.sleep if clock is not None else asyncio.sleep
+    loop = asyncio.get_running_loop()
+    now: Callable[[], float] = clock.now if clock is not None else loop.time
     deadline = now() + timeout
     while True:
         await wait_all_tasks_blocked()
@@ -113,7 +131,14 @@ async def run_until(
         left = deadline - now()
         if left <= 0:
             raise RunUntilTimeout(f"{what or _name_of(condition)} still false after {timeout:g} s")
-        await sleep(min(step, left))
+        if isinstance(loop, VirtualTimeLoop) and clock is None:
+            # Nothing changes before the next timer goes off: wake up right after it.
+            later = [t - loop.time() for t in loop.timer_deadlines() if t > loop.time()]
+            await asyncio.sleep(min([*later, left]))
+        elif clock is not None:
+            await clock.sleep(min(step, left))
+        else:
+            await asyncio.sleep(min(step, left))
 
 
 def _name_of(condition: Callable[[], object]) -> str:
@@ -124,7 +149,9 @@ def _name_of(condition: Callable[[], object]) -> str:
 class Recorder(Layer):
     """A layer that records what reaches it, and answers requests with ``answer(msg)``.
 
-    ``arrived`` keeps every message that reached the layer, in order; ``external``
+    ``arrived`` keeps every message that reached the layer, in the order the layer
+    took them (a request answered with ``answer`` the moment it arrives, the others
+    when the layer's task gets to them); ``external``
     and ``internal`` those that reached ``handle_msg`` and ``store_intra_msg``;
     ``requests`` the NEGOTIATIONs it was asked (by another robot or a neighbour).
     ``answer`` (default: none) returns the reply to a request, or ``None`` to leave
@@ -424,6 +451,7 @@ class LayerHarness:
         messages: the messages of the stack (default: every registered message).
         clock: the clock (default: a :class:`~cas_async.VirtualClock` on the
             virtual-time loop, else the robots' default).
+        allowed_drops: drop reasons that do not fail the harness (see :class:`Robots`).
     """
 
     def __init__(
@@ -436,6 +464,7 @@ class LayerHarness:
         peers: Iterable[int] = (),
         messages: Sequence[type[Message]] | None = None,
         clock: Clock | None = None,
+        allowed_drops: Collection[str] = (),
     ) -> None:
         if not 0 <= level < height:
             raise ValueError(f"level {level} is not in a stack of {height} layers")
@@ -450,7 +479,7 @@ class LayerHarness:
         self._clock = clock
         self._own = [_Scripted() for _ in range(height)]
         self._peers = {peer: _Scripted() for peer in self._peer_ids}
-        self.robots = Robots(messages=messages)
+        self.robots = Robots(messages=messages, allowed_drops=allowed_drops)
 
     async def __aenter__(self) -> LayerHarness:
         """Starts the robot and its peers (their layers too)."""
@@ -468,9 +497,20 @@ class LayerHarness:
         await self.robots.swarm(robots)
         return self
 
-    async def __aexit__(self, *exc_info: object) -> None:
-        """Stops everything; raises the layer's failure, or drops no test allowed."""
-        await self.robots.aclose()
+    async def __aexit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object
+    ) -> None:
+        """Stops everything; raises the layer's failure, or drops the test did not allow.
+
+        When the block itself raised, that error goes on, with what stopping found
+        added to it as a note.
+        """
+        try:
+            await self.robots.aclose()
+        except (LayerError, UnexpectedDrops) as found:
+            if exc is None:
+                raise
+            exc.add_note(f"and when the harness stopped: {found}")
 
     def _opts(self) -> dict[str, Any]:
         return {} if self._messages is None else {"messages": self._messages}
@@ -558,10 +598,12 @@ async def peer_process(
 ) -> AsyncIterator[asyncio.subprocess.Process]:
     """Starts ``argv``, waits until it prints the line ``ready``, and always ends it after.
 
-    For tests with robots in another process (real UDP on loopback, say): the
-    process's stdin, stdout and stderr are pipes (what it prints after ``ready`` is
-    the test's to read). Leaving the block kills the process if it still runs and
-    waits for it (5 s at most), whatever happened in the block.
+    For tests with robots in another process (real UDP on loopback, say). Its stdin
+    and stdout are pipes (what it prints after ``ready`` is the test's to read); its
+    stderr is read all along (so that it never blocks on a full pipe) and its end
+    quoted if the process dies before it is ready. Leaving the block kills the
+    process if it still runs and reaps it (5 s at most), whatever happened in the
+    block.
 
     Raises:
         TimeoutError: no ``ready`` line within ``timeout`` (wall) seconds.
@@ -578,17 +620,21 @@ async def peer_process(
         stderr=asyncio.subprocess.PIPE,
         env=None if env is None else dict(env),
     )
+    stdout, stderr = process.stdout, process.stderr
+    if stdout is None or stderr is None:  # pragma: no cover - pipes were asked for
+        raise RuntimeError("asyncio gave the process no pipes")
+    said = bytearray()  # the end of its stderr
+    draining = asyncio.ensure_future(_drain(stderr, said))
     try:
-        assert process.stdout is not None  # a pipe, asked for above
         try:
             async with asyncio.timeout(timeout):
-                while (line := await process.stdout.readline()).decode().strip() != ready:
+                while (line := await stdout.readline()).decode().strip() != ready:
                     if not line:  # end of output: the process is gone
                         status = await process.wait()
-                        assert process.stderr is not None
-                        said = (await process.stderr.read()).decode(errors="replace")[-500:]
+                        await draining
                         raise RuntimeError(
-                            f"{argv[0]} ended (exit {status}) before printing {ready!r}: {said}"
+                            f"{argv[0]} ended (exit {status}) before printing {ready!r}: "
+                            + said.decode(errors="replace")
                         )
         except TimeoutError:
             raise TimeoutError(f"{argv[0]} did not print {ready!r} within {timeout:g} s") from None
@@ -599,4 +645,15 @@ async def peer_process(
                 process.kill()
         with contextlib.suppress(TimeoutError):
             async with asyncio.timeout(5.0):
-                await process.wait()
+                # Reaped, and its pipes read to the end: asyncio then closes them.
+                await asyncio.gather(process.wait(), stdout.read(), draining)
+        draining.cancel()
+        if process.stdin is not None:
+            process.stdin.close()
+
+
+async def _drain(stream: asyncio.StreamReader, tail: bytearray, keep: int = 500) -> None:
+    """Reads ``stream`` to its end, keeping its last ``keep`` bytes in ``tail``."""
+    while chunk := await stream.read(65536):
+        tail += chunk
+        del tail[:-keep]

@@ -112,8 +112,12 @@ def _bounded(base: Any, bounds: list[Bounds], where: str) -> SearchStrategy[Any]
     exclude_low = any(bound.gt is not None and bound.gt == low for bound in bounds)
     exclude_high = any(bound.lt is not None and bound.lt == high for bound in bounds)
     if base is int:
-        lowest = _INT64[0] if low is None else math.floor(low) + (1 if exclude_low else 0)
-        highest = _INT64[1] if high is None else math.ceil(high) - (1 if exclude_high else 0)
+        lowest = _INT64[0] if low is None else math.ceil(low)
+        if exclude_low and lowest == low:
+            lowest += 1
+        highest = _INT64[1] if high is None else math.floor(high)
+        if exclude_high and highest == high:
+            highest -= 1
         return st.integers(max(lowest, _INT64[0]), min(highest, _INT64[1]))
     if base is not float:
         raise TypeError(f"{where}: bounds on {base!r}")

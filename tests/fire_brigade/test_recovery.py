@@ -257,15 +257,13 @@ class PoisonedMeet:
         return DELIVER
 
 
-@pytest.mark.parametrize(("speed", "refused"), [(math.nan, 1), (math.inf, 1), (-1.0, 1)])
-def test_a_meet_with_an_impossible_speed_is_refused_by_the_decoder(
-    speed: float, refused: int
-) -> None:
+@pytest.mark.parametrize("speed", [math.nan, math.inf, -1.0])
+def test_a_meet_with_an_impossible_speed_is_refused_by_the_decoder(speed: float) -> None:
     # Issue 16: such a Meet made Group Activity raise, and the whole run failed.
     rule = PoisonedMeet(x=1.0, speed=speed)
     outcome = run_censored(SCENARIO, rule)
     assert outcome.replaced == 1
-    assert outcome.refused[rule.receiver].get("decode.out_of_range") == refused
+    assert outcome.refused[rule.receiver].get("decode.out_of_range") == 1
     assert_every_bucket_delivered(outcome)  # the giver asked again, and was answered
 
 

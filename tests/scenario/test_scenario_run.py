@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import asyncio
+import gc
 from pathlib import Path
+
+import pytest
 
 import cas_async
 from cas_async import RobotState
@@ -118,3 +121,20 @@ def test_a_run_that_never_started_writes_no_trace(tmp_path: Path) -> None:
 
     cas_async.run(stopped())
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_start_that_fails_undoes_what_it_did(tmp_path: Path) -> None:
+    # The trace file cannot be made: the robots had started, and must be stopped.
+    scenario = load_scenario(SHIPPED, VIRTUAL)
+    thresholds = gc.get_threshold()
+
+    async def failing() -> ScenarioRun:
+        run = ScenarioRun(scenario, trace_csv=tmp_path / "missing" / "trace.csv")
+        with pytest.raises(FileNotFoundError):
+            async with run:
+                raise AssertionError("not reached")
+        return run
+
+    run = cas_async.run(failing(), virtual=True)
+    assert {robot.state for robot in run.swarm} == {RobotState.STOPPED}
+    assert gc.get_threshold() == thresholds

@@ -235,3 +235,15 @@ def test_a_discarded_csv_leaves_the_previous_file(trace: Trace, tmp_path: Path) 
     writer.discard()
     assert path.read_text() == "before\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["trace.csv"]
+
+
+def test_a_failed_write_leaves_no_temporary_file(
+    trace: Trace, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def full_disk(self: TraceCsv, t: float) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(TraceCsv, "write_until", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        trace.write_csv(tmp_path / "trace.csv")
+    assert list(tmp_path.iterdir()) == []
