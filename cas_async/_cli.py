@@ -307,14 +307,12 @@ class _Session:
         Inner blocks say otherwise where they must (the loop, the writes). Ending
         at once says what was written first.
         """
-        if not self._owns_process:
-            return contextlib.nullcontext()
-        return self._interrupts.calling(self._exit_now)
+        streams = (self._stdout, self._stderr)
+        return _leaving_at_once(self._interrupts, self._owns_process, streams, self._say_written)
 
     def _exit_now(self) -> NoReturn:
         """Ends the process with 130 once the output is flushed: the OS reclaims the robots."""
-        self._say_written()
-        _exit_process((self._stdout, self._stderr))
+        _exit_process((self._stdout, self._stderr), self._say_written)
 
 
 def _not_built(scenario: Scenario, wall_time: float) -> RunResult:

@@ -87,6 +87,7 @@ from cas_async import (
     spec_of,
 )
 from cas_async.scenario import RunResult, RunStatus, Scenario, ScenarioRun, load_scenario
+from cas_async.testing import peer_process
 from cas_async.transport import Codec
 
 SCENARIO: Final = (
@@ -433,24 +434,10 @@ def forged_drops(robots: Sequence[Robot]) -> int:
     )
 
 
-async def start_attacker(pool_file: Path) -> asyncio.subprocess.Process:
-    """The attacker's process, started: it says when it is ready (see :func:`attacker_ready`)."""
-    return await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-c",
-        ATTACKER,
-        str(pool_file),
-        str(RATE),
-        str(ATTACKER_LIFETIME),
-        stdin=asyncio.subprocess.PIPE,
-        stdout=asyncio.subprocess.PIPE,
-    )
-
-
-async def attacker_ready(proc: asyncio.subprocess.Process) -> None:
-    assert proc.stdout is not None
-    ready = await asyncio.wait_for(proc.stdout.readline(), 20)
-    assert ready == b"ready\n", ready
+def attacker(pool_file: Path) -> contextlib.AbstractAsyncContextManager[asyncio.subprocess.Process]:
+    """The attacker's process, once it is ready; killed and reaped on the way out."""
+    argv = (sys.executable, "-c", ATTACKER, str(pool_file), str(RATE), str(ATTACKER_LIFETIME))
+    return peer_process(*argv, timeout=20.0)
 
 
 async def stop_attacker(proc: asyncio.subprocess.Process) -> Attack:
@@ -472,11 +459,10 @@ async def until(condition: Callable[[], bool], seconds: float) -> None:
 
 async def run(scenario: Scenario, *, key: SwarmKey | None, pool_file: Path | None) -> Outcome:
     """Runs ``scenario`` to its end, flooded from ``pool_file`` when given."""
-    proc: asyncio.subprocess.Process | None = None
-    try:
-        if pool_file is not None:
-            proc = await start_attacker(pool_file)
-            await attacker_ready(proc)  # before the run starts: the flood starts with it
+    async with contextlib.AsyncExitStack() as stack:
+        proc = None
+        if pool_file is not None:  # ready before the run starts: the flood starts with it
+            proc = await stack.enter_async_context(attacker(pool_file))
         scenario_run = ScenarioRun(scenario, key=key)
         async with scenario_run:
             robots = list(scenario_run.swarm)
@@ -508,11 +494,6 @@ async def run(scenario: Scenario, *, key: SwarmKey | None, pool_file: Path | Non
                 attack,
                 unaccounted(),
             )
-    finally:
-        if proc is not None and proc.returncode is None:
-            with contextlib.suppress(ProcessLookupError):  # it may have just ended
-                proc.kill()
-            await asyncio.wait_for(proc.wait(), 10)
 
 
 def runs(scenario: Scenario, pool_file: Path, key: SwarmKey | None) -> tuple[Outcome, Outcome]:

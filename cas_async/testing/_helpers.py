@@ -258,6 +258,13 @@ class UnexpectedDrops(AssertionError):
     """Robots of a test dropped messages for reasons the test did not allow."""
 
 
+def _default_clock(clock: Clock | None) -> Clock | None:
+    """``clock``, or on the virtual-time loop a :class:`~cas_async.VirtualClock`."""
+    if clock is None and isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
+        return VirtualClock()
+    return clock
+
+
 @final
 class Robots:
     """Starts robots and swarms for a test; :meth:`aclose` stops them and checks them.
@@ -293,8 +300,7 @@ class Robots:
 
         On the virtual-time loop the clock defaults to a :class:`~cas_async.VirtualClock`.
         """
-        if clock is None and isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
-            clock = VirtualClock()
+        clock = _default_clock(clock)
         if self._messages is not None:
             options.setdefault("messages", self._messages)
         robot = Robot(robot_id, layers, transport=transport, clock=clock, **options)
@@ -484,9 +490,7 @@ class LayerHarness:
     async def __aenter__(self) -> LayerHarness:
         """Starts the robot and its peers (their layers too)."""
         transport = MemoryTransport()
-        clock = self._clock
-        if clock is None and isinstance(asyncio.get_running_loop(), VirtualTimeLoop):
-            clock = VirtualClock()
+        clock = _default_clock(self._clock)
         layers: list[Layer] = list(self._own)
         layers[self.level] = self.layer
         robots = [Robot(self._robot_id, layers, transport=transport, clock=clock, **self._opts())]
