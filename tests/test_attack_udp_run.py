@@ -10,15 +10,14 @@ Its datagrams come in turn from a pool the test forges with the swarm's own
 :class:`~cas_async.transport.Codec`:
 
 * ``spoofed``: well-formed messages of the Fire Brigade (``RequestInfo``,
-  ``RequestPartner``, ``Meet``, ``Meeting``, ``Handover``, ``ChangeStatus``) at
-  their layer's level, whose header claims a robot of the swarm, with message ids
-  no honest robot has used yet (``2**63 - 1``, ``2**64 - 1``, or minutes ahead of
-  the clock: believed, one would make the claimed robot's real messages look old),
-  some as replies to ids a robot may just have used, some with positions far
-  outside the world;
-* ``nan``: ``Meet``, ``RequestInfo``, ``RequestPartner`` and
-  ``RequestRobotsInRange`` with a NaN, infinite or negative position, speed or
-  radius;
+  ``RobotInfo``, ``RequestPartner``, ``PartnerAnswer``, ``Meet``, ``MeetingPoint``,
+  ``Meeting``, ``Handover``, and the internal ``MeetAt``) at their layer's level,
+  whose header claims a robot of the swarm, with message ids no honest robot has
+  used yet (``2**63 - 1``, ``2**64 - 1``, or minutes ahead of the clock: believed,
+  one would make the claimed robot's real messages look old), some as replies to
+  ids a robot may just have used, some with positions far outside the world;
+* ``nan``: ``Meet``, ``RobotInfo``, ``RequestPartner``, ``RequestRobotsInRange``
+  and ``RobotsInRange`` with a NaN, infinite or negative position, speed or radius;
 * ``long``: datagrams of about 58 KB holding msgpack arrays of thousands of items
   (or nested thousands deep), as the whole datagram or in a field;
 * ``garbage``: random bytes, cut datagrams, and messages with a made-up
@@ -68,14 +67,18 @@ import pytest
 import cas_async
 from apps.fire_brigade.messages import (
     MESSAGES,
-    ChangeStatus,
     Handover,
     Kind,
     Meet,
+    MeetAt,
     Meeting,
+    MeetingPoint,
+    PartnerAnswer,
     RequestInfo,
     RequestPartner,
     RequestRobotsInRange,
+    RobotInfo,
+    RobotsInRange,
 )
 from cas_async import (
     DecodeError,
@@ -229,12 +232,16 @@ def pack(value: Any) -> bytes:
 
 LEVELS: Final[dict[type[Message], int]] = {
     RequestInfo: 0,
+    RobotInfo: 0,
     RequestPartner: 1,
+    PartnerAnswer: 1,
     RequestRobotsInRange: 1,
+    RobotsInRange: 1,
     Meet: 2,
+    MeetingPoint: 2,
     Meeting: 3,
     Handover: 3,
-    ChangeStatus: 3,
+    MeetAt: 3,
 }
 """The level a forgery of each message claims: where the swarm exchanges it."""
 
@@ -281,12 +288,15 @@ class Forger:
         deal = rng.choice((-1, self.now_us, 2**63 - 1))
         bucket, sink = rng.randrange(100), rng.randrange(1, 26)
         choices: dict[type[Message], list[Any]] = {
-            RequestInfo: [x, y, kind, rng.uniform(0, 5)],
+            RequestInfo: [],
+            RobotInfo: [x, y, kind, rng.uniform(0, 5)],
             RequestPartner: [x, y, kind, bucket, sink, x, y],
+            PartnerAnswer: [kind],
             Meet: [x, y, kind, rng.uniform(0, 5), deal],
+            MeetingPoint: [x, y, deal],
             Meeting: [deal],
             Handover: [bucket, deal],
-            ChangeStatus: ["Partnered", sink, x, y, True, bucket, sink, x, y, deal],
+            MeetAt: [sink, x, y, True, bucket, sink, x, y, deal],
         }
         cls = rng.choice(list(choices))
         return self.wire(cls, choices[cls])
@@ -300,10 +310,10 @@ class Forger:
         choices: list[tuple[type[Message], list[Any]]] = [
             (Meet, [x, y, 2, speed, -1]),
             (Meet, [bad, y, 2, 1.0, -1]),
-            (RequestInfo, [x, y, 2, speed]),
+            (RobotInfo, [x, y, 2, speed]),
             (RequestPartner, [x, bad, 2, -1, -1, x, y]),
-            (RequestRobotsInRange, [speed, None, None, None, x, y, 1.0]),  # the radius
-            (RequestRobotsInRange, [5.0, [1, 2], [x, bad], [y, y], x, y, 1.0]),
+            (RequestRobotsInRange, [speed]),  # the radius
+            (RobotsInRange, [[1, 2], [x, bad], [y, y], x, y, 1.0]),
         ]
         cls, fields = rng.choice(choices)
         return self.wire(cls, fields)
@@ -323,10 +333,10 @@ class Forger:
             return self.wire(Meeting, [list(range(big, big + n))])
         if choice == 3:  # a list of coordinates, the last one NaN
             xs = [rng.uniform(0, 10) for _ in range(n)] + [math.nan]
-            return self.wire(RequestRobotsInRange, [5.0, [1], xs, [1.0], 1.0, 1.0, 1.0])
+            return self.wire(RobotsInRange, [[1], xs, [1.0], 1.0, 1.0, 1.0])
         if choice == 4:  # a list of ids that are strings (6 bytes each)
             ids = ["robot"] * (n * 3 // 2)
-            return self.wire(RequestRobotsInRange, [5.0, ids, None, None, 1.0, 1.0, 1.0])
+            return self.wire(RobotsInRange, [ids, [], [], 1.0, 1.0, 1.0])
         # in an int field, arrays in arrays, 9 * n deep
         data = self.wire(Meeting, [0])
         return data[:-1] + b"\x91" * (9 * n) + b"\x00"

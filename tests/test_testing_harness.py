@@ -8,9 +8,10 @@ from apps.fire_brigade import TimeStrategy
 from apps.fire_brigade.base import ACTION
 from apps.fire_brigade.messages import (
     MESSAGES,
-    ChangeStatus,
+    MoveBucket,
     RequestPartner,
     RequestRobotsInRange,
+    RobotsInRange,
 )
 from cas_async import Layer, LayerError, Message, MsgType, message
 from cas_async.testing import LayerHarness
@@ -19,14 +20,12 @@ from tests.fire_brigade.test_strategies import params
 
 @pytest.mark.cas_virtual
 async def test_a_strategy_layer_asks_the_best_partner_first() -> None:
-    near = RequestRobotsInRange(
-        5.0, ids=[11, 12], xs=[5.0, 5.0], ys=[-2.0, 5.0], x=5.0, y=1.0, speed=5.0
-    )
+    near = RobotsInRange(ids=[11, 12], xs=[5.0, 5.0], ys=[-2.0, 5.0], x=5.0, y=1.0, speed=5.0)
     async with LayerHarness(
         TimeStrategy(params()), level=1, height=5, peers=[11, 12], messages=MESSAGES
     ) as h:
         h.answer_at(ACTION, RequestRobotsInRange, lambda _: near)
-        h.from_above(ChangeStatus("MoveBucket", bucket=7, sink=2, sink_x=5.0, sink_y=19.0))
+        h.from_above(MoveBucket(bucket=7, sink=2, sink_x=5.0, sink_y=19.0))
         await h.settle()
         (asked,) = h.sent_to(12)  # ahead, on the way to the sink: the best partner
         assert isinstance(asked, RequestPartner)

@@ -3,16 +3,18 @@
 It is the only layer that touches the robot, through its
 :class:`~cas_async.Middleware` (motion, perception) and :class:`~cas_async.Hands`
 (buckets): in simulation the kinematics and the Environment, on hardware the
-drivers, without any other layer changing. Every command is an
-internal request (a NEGOTIATION) answered when the action is over, with the
-robot's pose (``CompletionStatus``). It also answers the upper layers' sensing
-queries (``RequestInfo``, ``RequestRobotsInRange``).
+drivers, without any other layer changing. Every command is an internal request
+(a NEGOTIATION) answered when the action is over: the Task layer's commands
+(``Where``, ``Rotate``, ``Move``, ``HoldOut``, ``Withdraw``, ``Give``, ``Take``) with
+the robot's pose (``CompletionStatus``), the Goal layer's ``MakeBucket`` with the
+new bucket (``BucketMade``). It also answers the upper layers' sensing queries
+(``RequestInfo`` with ``RobotInfo``, ``RequestRobotsInRange`` with ``RobotsInRange``).
 
 Fatigue lives here: taking a bucket switches the motion to a decelerating speed
 profile, handing it over resets it to full speed.
 
-Hands: a receiver holds them out to its giver (``"Accept"``) and withdraws them
-once it has the bucket or gives up (``"Withdraw"``); a hand-over into hands not
+Hands: a receiver holds them out to its giver (``HoldOut``) and withdraws them
+once it has the bucket or gives up (``Withdraw``); a hand-over into hands not
 held out fails, and the giver keeps the bucket (see the Task layer).
 """
 
@@ -23,7 +25,23 @@ import math
 from cas_async import Hands, Message, Middleware, SimulationError
 
 from .base import BrigadeLayer, Params
-from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
+from .messages import (
+    BucketMade,
+    CompletionStatus,
+    Give,
+    HoldOut,
+    Kind,
+    MakeBucket,
+    Move,
+    RequestInfo,
+    RequestRobotsInRange,
+    RobotInfo,
+    RobotsInRange,
+    Rotate,
+    Take,
+    Where,
+    Withdraw,
+)
 
 __all__ = ["Action"]
 
@@ -41,42 +59,67 @@ class Action(BrigadeLayer):
             return 0.0
         return self.middleware.speed_profile.speed_at(0.0)
 
-    async def _done(self, action: str, bucket: int = -1) -> CompletionStatus:
-        """The report of ``action``: the pose, and whether ``bucket`` is held now.
+    async def _done(self, bucket: int | None = None) -> CompletionStatus:
+        """The report of an action: the pose, and whether ``bucket`` is held now.
 
         Without a ``bucket``, whether the robot holds any. (A Sink may be handed
         several buckets at once: the report is about the one this action was for.)
         """
         pose = self.middleware.pose()
         held = await self.hands.items()
-        if bucket < 0 and held:
-            bucket = held[0]
         return CompletionStatus(
-            action,
             x=pose.x,
             y=pose.y,
             heading=pose.heading,
-            has_bucket=bucket in held,
-            bucket=bucket,
+            has_bucket=bool(held) if bucket is None else bucket in held,
         )
 
     async def get_intra_msg_reply(self, msg: Message) -> Message | None:
         """Performs the command or answers the query; see the module docs."""
-        if isinstance(msg, RequestInfo):
-            pose = self.middleware.pose()
-            return RequestInfo(pose.x, pose.y, self.kind, self._speed())
-        if isinstance(msg, RequestRobotsInRange):
-            return await self._robots_in_range(msg.radius)
-        if not isinstance(msg, ChangeStatus):
-            self.unexpected(msg, "the Action layer only executes ChangeStatus commands")
-            return None
-        return await self._execute(msg)
+        match msg:
+            case RequestInfo():
+                pose = self.middleware.pose()
+                return RobotInfo(pose.x, pose.y, self.kind, self._speed())
+            case RequestRobotsInRange(radius=radius):
+                return await self._robots_in_range(radius)
+            case MakeBucket():
+                bucket = await self.hands.create_item()
+                pose = self.middleware.pose()
+                return BucketMade(bucket, pose.x, pose.y)
+            case Where():
+                return await self._done()
+            case Rotate(x=x, y=y):
+                here = self.middleware.pose()
+                await self.middleware.rotate_to(math.atan2(y - here.y, x - here.x))
+                return await self._done()
+            case Move(x=x, y=y):
+                await self.middleware.move_to(x, y)
+                return await self._done()
+            case HoldOut(partner=partner):
+                await self.hands.accept_from(partner)
+                return await self._done()
+            case Withdraw(partner=partner, bucket=bucket):
+                await self.hands.refuse_from(partner)
+                return await self._done(bucket)
+            case Give(bucket=bucket, partner=partner):
+                return await self._give(bucket, partner)
+            case Take(bucket=bucket, partner=partner):
+                return await self._take(bucket, partner)
+        self.unexpected(msg, "not a command or query of the Action layer")
+        return None
 
-    async def _robots_in_range(self, radius: float) -> RequestRobotsInRange:
+    async def store_intra_msg(self, msg: Message) -> None:
+        """Logs what is not a request: the Action layer only answers them."""
+        self.unexpected(msg, "the Action layer only answers requests")
+
+    async def handle_msg(self, msg: Message) -> None:
+        """Logs a message from another robot: the robotic layer talks to none."""
+        self.unexpected(msg, "the Action layer talks to no other robot")
+
+    async def _robots_in_range(self, radius: float) -> RobotsInRange:
         found = await self.middleware.robots_within(radius)
         pose = self.middleware.pose()
-        return RequestRobotsInRange(
-            radius,
+        return RobotsInRange(
             ids=found.ids.tolist(),
             xs=found.xy[:, 0].tolist(),
             ys=found.xy[:, 1].tolist(),
@@ -85,42 +128,16 @@ class Action(BrigadeLayer):
             speed=self._speed(),
         )
 
-    async def _execute(self, command: ChangeStatus) -> CompletionStatus | None:
-        status = command.status
-        if status == "Where":
-            return await self._done(status)
-        if status == "Rotate":
-            here = self.middleware.pose()
-            await self.middleware.rotate_to(math.atan2(command.y - here.y, command.x - here.x))
-            return await self._done(status)
-        if status == "Move":
-            await self.middleware.move_to(command.x, command.y)
-            return await self._done(status)
-        if status == "Accept":
-            await self.hands.accept_from(command.partner)
-            return await self._done(status)
-        if status == "Withdraw":
-            await self.hands.refuse_from(command.partner)
-            return await self._done(status, command.bucket)
-        if status == "MakeBucket":
-            return await self._done(status, await self.hands.create_item())
-        if status == "SwapBucket":
-            if command.has_bucket:
-                return await self._give(command.bucket, command.partner)
-            return await self._take(command.bucket, command.partner)
-        self.unexpected(command, f"unknown command {status!r}")
-        return None
-
     async def _give(self, bucket: int, partner: int) -> CompletionStatus:
         await self.clock.sleep(self.params.handover_time)
         try:
             await self.hands.hand_over(bucket, partner)  # the one atomic moment of the exchange
         except SimulationError as refused:  # the partner withdrew its hands: no exchange
             self.log.info("hand-over refused: %s", refused)
-            return await self._done("SwapBucket", bucket)
+            return await self._done(bucket)
         if self.params.mobile:
             self.middleware.speed_profile = self.params.empty()
-        return await self._done("SwapBucket", bucket)
+        return await self._done(bucket)
 
     async def _take(self, bucket: int, giver: int) -> CompletionStatus:
         held = await self.hands.items()
@@ -134,4 +151,4 @@ class Action(BrigadeLayer):
             await self.hands.retire_item(bucket)
         elif self.params.mobile:
             self.middleware.speed_profile = self.params.carrying()
-        return await self._done("SwapBucket", bucket)
+        return await self._done(bucket)

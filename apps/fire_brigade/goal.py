@@ -1,18 +1,19 @@
 """The Goal layer (thesis Fig. 28): decides whether the robot moves a bucket, and where to.
 
 * A robot that holds a bucket and has no destination finds one: a Generator asks
-  every robot where it is and what it is (``RequestInfo``) and picks the nearest
-  Sink. Sinks never move, so the answer is kept for the Generator's next buckets.
-  Robots that do not answer within ``timeout`` are asked again, up to ``retries``
-  times; then the Sinks known so far are enough (and without one it keeps asking).
+  every robot where it is and what it is (``RequestInfo``, answered with
+  ``RobotInfo``) and picks the nearest Sink. Sinks never move, so the answer is
+  kept for the Generator's next buckets. Robots that do not answer within
+  ``timeout`` are asked again, up to ``retries`` times; then the Sinks known so far
+  are enough (and without one it keeps asking).
   With ``sink_search = "nearby"`` it asks only the robots within ``range`` of it,
   then within a radius ``search_growth`` times larger, and so on, until a Sink has
   answered (up to the whole world): in a swarm of thousands, asking everyone is a
   flood of answers per Generator. The Sink chosen is the same: once one Sink within
   a radius has answered, the nearest Sink is within that radius too.
   A Transporter that receives a bucket takes over the destination its giver chose.
-* With a destination, it hands the responsibility down: ``ChangeStatus("MoveBucket")``.
-* When the layers below report a hand-over (``"Exchanged"``): a Transporter that
+* With a destination, it hands the responsibility down: ``MoveBucket``.
+* When the layers below report a hand-over (``Exchanged``): a Transporter that
   received a bucket moves it on; one that gave it away goes idle; a Generator
   makes a new bucket and starts again; a Sink stays idle.
 """
@@ -26,7 +27,17 @@ from cas_async import Message, MsgType
 
 from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import distance
-from .messages import ChangeStatus, CompletionStatus, Kind, RequestInfo, RequestRobotsInRange
+from .messages import (
+    BucketMade,
+    Exchanged,
+    Kind,
+    MakeBucket,
+    MoveBucket,
+    RequestInfo,
+    RequestRobotsInRange,
+    RobotInfo,
+    RobotsInRange,
+)
 
 __all__ = ["Goal"]
 
@@ -40,10 +51,10 @@ class Goal(BrigadeLayer):
         self.sink = -1  # the destination chosen for it
         self.sink_at: Point = (0.0, 0.0)
         self.here: Point = (0.0, 0.0)
-        self.delegated = False  # "MoveBucket" sent down and not yet completed
+        self.delegated = False  # MoveBucket sent down and not yet completed
         self.asking = False  # a RequestInfo round is under way
         self.rounds = 0  # RequestInfo rounds sent in this search (timer "answers": over)
-        self.answers: dict[int, RequestInfo] = {}
+        self.answers: dict[int, RobotInfo] = {}
         self.sinks: dict[int, Point] | None = None  # known once a round completed
         # "nearby": the robots within radius (nearest first) and those of them that
         # have not answered yet; "everyone" asks the peers.
@@ -66,22 +77,17 @@ class Goal(BrigadeLayer):
             if self.sinks is None:
                 await self._ask_everyone()
                 return
-            self._choose_sink()
+            self._choose_sink(self.sinks)
         self.delegated = True
         self.send_down(
-            ChangeStatus(
-                "MoveBucket",
-                has_bucket=True,
-                bucket=self.bucket,
-                sink=self.sink,
-                sink_x=self.sink_at[0],
-                sink_y=self.sink_at[1],
+            MoveBucket(
+                bucket=self.bucket, sink=self.sink, sink_x=self.sink_at[0], sink_y=self.sink_at[1]
             )
         )
 
     async def _make_bucket(self) -> None:
         # Making a bucket is physical: the robotic layer does it.
-        made = await self.request_layer(ACTION, ChangeStatus("MakeBucket"), reply=CompletionStatus)
+        made = await self.request_layer(ACTION, MakeBucket(), reply=BucketMade)
         self.bucket = made.bucket
         self.here = (made.x, made.y)
 
@@ -94,16 +100,15 @@ class Goal(BrigadeLayer):
             self.radius = self.params.range
             await self._ask_nearby()
             return
-        where = await self.request_layer(ACTION, RequestInfo(), reply=RequestInfo)
+        where = await self.request_layer(ACTION, RequestInfo(), reply=RobotInfo)
         self.here = (where.x, where.y)
         self._ask(self.params.peers)
 
     async def _ask_nearby(self) -> None:
         """Asks the robots within ``radius`` that have not answered yet."""
         found = await self.request_layer(
-            ACTION, RequestRobotsInRange(self.radius), reply=RequestRobotsInRange
+            ACTION, RequestRobotsInRange(self.radius), reply=RobotsInRange
         )
-        assert found.ids is not None
         self.here = (found.x, found.y)
         self.asked = tuple(found.ids)
         self.rounds = 0
@@ -131,10 +136,7 @@ class Goal(BrigadeLayer):
             raise RuntimeError(f"robot {self.robot_id}: no robot of the swarm is a sink")
 
     def _ask(self, robots: Sequence[int]) -> None:
-        self.broadcast(
-            RequestInfo(self.here[0], self.here[1], self.kind, msg_type=MsgType.NEGOTIATION),
-            robots=robots,
-        )
+        self.broadcast(RequestInfo(msg_type=MsgType.NEGOTIATION), robots=robots)
         self.rounds += 1
         self.wake_after(self.params.timeout, "answers")
 
@@ -164,21 +166,24 @@ class Goal(BrigadeLayer):
         self.answers.clear()
         return True
 
-    def _choose_sink(self) -> None:
-        assert self.sinks
+    def _choose_sink(self, sinks: dict[int, Point]) -> None:
         self.sink, self.sink_at = min(
-            self.sinks.items(), key=lambda item: (distance(self.here, item[1]), item[0])
+            sinks.items(), key=lambda item: (distance(self.here, item[1]), item[0])
         )
 
     async def handle_msg(self, msg: Message) -> None:
         """Answers RequestInfo queries; collects the answers to this robot's own."""
-        if not isinstance(msg, RequestInfo):
-            self.unexpected(msg, "the Goal layer only exchanges RequestInfo")
-            return
-        if msg.msg_type == MsgType.NEGOTIATION:
-            where = await self.request_layer(ACTION, RequestInfo(), reply=RequestInfo)
-            self.reply(msg, RequestInfo(where.x, where.y, self.kind))
-            return
+        match msg:
+            case RequestInfo(msg_type=MsgType.NEGOTIATION):
+                where = await self.request_layer(ACTION, RequestInfo(), reply=RobotInfo)
+                self.reply(msg, RobotInfo(where.x, where.y, self.kind, where.speed))
+            case RobotInfo():
+                await self._answered(msg)
+            case _:
+                self.unexpected(msg, "the Goal layer only exchanges RequestInfo and RobotInfo")
+
+    async def _answered(self, msg: RobotInfo) -> None:
+        """Another robot answered this robot's RequestInfo."""
         if not self.asking:
             self.late(msg, "no RequestInfo round is under way")
             return
@@ -197,13 +202,14 @@ class Goal(BrigadeLayer):
 
     async def store_intra_msg(self, msg: Message) -> None:
         """A hand-over happened below: take the new state."""
-        if not (isinstance(msg, ChangeStatus) and msg.status == "Exchanged"):
-            self.unexpected(msg, "the Goal layer only expects 'Exchanged' from below")
-            return
-        self.delegated = False
-        self.here = (msg.x, msg.y)
-        if msg.has_bucket and self.kind is not Kind.SINK:
-            self.bucket = msg.bucket
-            self.sink, self.sink_at = msg.sink, (msg.sink_x, msg.sink_y)
-        else:
-            self.bucket = self.sink = -1
+        match msg:
+            case Exchanged():
+                self.delegated = False
+                self.here = (msg.x, msg.y)
+                if msg.has_bucket and self.kind is not Kind.SINK:
+                    self.bucket = msg.bucket
+                    self.sink, self.sink_at = msg.sink, (msg.sink_x, msg.sink_y)
+                else:
+                    self.bucket = self.sink = -1
+            case _:
+                self.unexpected(msg, "the Goal layer only expects Exchanged from below")

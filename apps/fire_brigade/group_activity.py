@@ -1,16 +1,17 @@
 """The Group Activity layer (thesis Fig. 30): agreeing on a meeting point with the partner.
 
-On ``"Partnered"`` from the Strategy layer, the giver sends ``Meet`` with its position,
+On ``Partnered`` from the Strategy layer, the giver sends ``Meet`` with its position,
 kind and current speed. The partner works out where they will meet (both moving
 toward each other at once; at the immobile one's position when one cannot move),
-answers with that point, and both tell their Task layer (``"Meeting"``). A solo leg
-(``"Carry"``) passes straight through to the Task layer. Completions from below
-(``"Exchanged"``, ``"Moved"``, ``"Abandoned"``) are passed up to the Strategy layer.
+answers with that point (``MeetingPoint``), and both tell their Task layer
+(``MeetAt``). A solo leg (``Carry``) passes straight through to the Task layer.
+Completions from below (``Exchanged``, ``Moved``, ``Abandoned``) are passed up to
+the Strategy layer.
 
 A partner may go silent (or the network may lose every copy of a message): the
 giver asks ``Meet`` again up to ``retries`` times and gives up after that; the
 receiver gives up when no ``Meet`` came within twice that time. Giving up is
-reported upwards as ``"Abandoned"``; a ``Meet`` for a partnership given up is
+reported upwards as ``Abandoned``; a ``Meet`` for a partnership given up is
 refused (DENY), so the giver gives up too.
 """
 
@@ -22,7 +23,18 @@ from cas_async import ConstantSpeed, Message, MsgType, RequestTimeout, SpeedProf
 
 from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import meeting_point
-from .messages import ChangeStatus, Meet, RequestInfo
+from .messages import (
+    Abandoned,
+    Carry,
+    Exchanged,
+    Meet,
+    MeetAt,
+    MeetingPoint,
+    Moved,
+    Partnered,
+    RequestInfo,
+    RobotInfo,
+)
 
 __all__ = ["GroupActivity"]
 
@@ -32,12 +44,12 @@ class GroupActivity(BrigadeLayer):
 
     def __init__(self, params: Params) -> None:
         super().__init__(params)
-        # partner -> the "Partnered" status; a receiver arms the timer ("meet", partner)
-        # for when the partner's Meet is overdue.
-        self.partnerships: dict[int, ChangeStatus] = {}
+        # partner -> the partnership; a receiver arms the timer ("meet", partner) for
+        # when the partner's Meet is overdue.
+        self.partnerships: dict[int, Partnered] = {}
 
-    async def _where(self) -> RequestInfo:
-        return await self.request_layer(ACTION, RequestInfo(), reply=RequestInfo)
+    async def _where(self) -> RobotInfo:
+        return await self.request_layer(ACTION, RequestInfo(), reply=RobotInfo)
 
     def _profile(self, speed: float, *, carrying: bool) -> SpeedProfile | None:
         """How a robot moving at ``speed`` now will move (``None``: it cannot)."""
@@ -54,45 +66,36 @@ class GroupActivity(BrigadeLayer):
                     self.log.info("robot %d never sent Meet: partnership abandoned", partner)
                     self._abandoned(partnership)
 
-    def _abandoned(self, partnership: ChangeStatus) -> None:
-        self.send_up(
-            ChangeStatus(
-                "Abandoned",
-                partner=partnership.partner,
-                has_bucket=partnership.has_bucket,
-                bucket=partnership.bucket,
-                deal=partnership.deal,
-            )
-        )
+    def _abandoned(self, partnership: Partnered) -> None:
+        self.send_up(Abandoned(partnership.partner, has_bucket=partnership.giver))
 
     async def store_intra_msg(self, msg: Message) -> None:
         """From above: a partnership or a solo leg; from below: their completion."""
-        if not isinstance(msg, ChangeStatus):
-            self.unexpected(msg, "the Group Activity layer expects ChangeStatus")
-        elif msg.status == "Partnered":
-            self.partnerships[msg.partner] = msg
-            if msg.has_bucket:  # the giver opens the coordination
-                await self._open_meeting(msg)
-            else:
-                self.wake_after(2 * self.params.give_up_after, ("meet", msg.partner))
-        elif msg.status == "Carry":
-            self.send_down(msg)
-        elif msg.status in ("Exchanged", "Abandoned"):
-            self.partnerships.pop(msg.partner, None)
-            self.send_up(msg)
-        elif msg.status == "Moved":
-            self.send_up(msg)
-        else:
-            self.unexpected(msg, f"unknown status {msg.status!r}")
+        match msg:
+            case Partnered():
+                self.partnerships[msg.partner] = msg
+                if msg.giver:  # the giver opens the coordination
+                    await self._open_meeting(msg)
+                else:
+                    self.wake_after(2 * self.params.give_up_after, ("meet", msg.partner))
+            case Carry():
+                self.send_down(msg)
+            case Exchanged(partner=partner) | Abandoned(partner=partner):
+                self.partnerships.pop(partner, None)
+                self.send_up(msg)
+            case Moved():
+                self.send_up(msg)
+            case _:
+                self.unexpected(msg, "not a message Group Activity takes from its neighbours")
 
-    async def _open_meeting(self, partnership: ChangeStatus) -> None:
+    async def _open_meeting(self, partnership: Partnered) -> None:
         where = await self._where()
         ask = Meet(where.x, where.y, self.kind, where.speed, deal=partnership.deal)
         try:
-            answer: Meet | None = await self.request(
+            answer: MeetingPoint | None = await self.request(
                 partnership.partner,
                 ask,
-                reply=Meet,
+                reply=MeetingPoint,
                 timeout=self.params.timeout,
                 retries=self.params.retries,
             )
@@ -113,18 +116,23 @@ class GroupActivity(BrigadeLayer):
 
     async def handle_msg(self, msg: Message) -> None:
         """The giver's Meet: answer with the meeting point (or refuse an unknown partnership)."""
-        if not isinstance(msg, Meet) or msg.msg_type != MsgType.NEGOTIATION:
-            self.unexpected(msg, "the Group Activity layer only takes Meet requests")
-            return
+        match msg:
+            case Meet(msg_type=MsgType.NEGOTIATION):
+                await self._meet(msg)
+            case _:
+                self.unexpected(msg, "the Group Activity layer only takes Meet requests")
+
+    async def _meet(self, msg: Meet) -> None:
+        refusal = MeetingPoint(msg.x, msg.y, msg.deal, msg_type=MsgType.DENY)
         partnership = self.partnerships.get(msg.robot_id)
         if partnership is not None and partnership.deal != msg.deal:
             partnership = None  # a message of an earlier partnership with that robot
-        if partnership is None or partnership.has_bucket:
-            self.reply(msg, Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY))
+        if partnership is None or partnership.giver:
+            self.reply(msg, refusal)
             self.late(msg, "not (or no longer) this robot's partner")
             return
         if not self.in_world((msg.x, msg.y)):
-            self.reply(msg, Meet(0.0, 0.0, self.kind, msg_type=MsgType.DENY))
+            self.reply(msg, refusal)
             self.unexpected(msg, "a position outside the world")
             return
         self.cancel_wake(("meet", msg.robot_id))
@@ -135,17 +143,16 @@ class GroupActivity(BrigadeLayer):
             self._profile(msg.speed, carrying=True),
             self._profile(where.speed, carrying=False),
         )
-        self.reply(msg, Meet(point[0], point[1], self.kind, deal=msg.deal))
+        self.reply(msg, MeetingPoint(point[0], point[1], msg.deal))
         self._meet_at(partnership, point)
 
-    def _meet_at(self, partnership: ChangeStatus, point: Point) -> None:
+    def _meet_at(self, partnership: Partnered, point: Point) -> None:
         self.send_down(
-            ChangeStatus(
-                "Meeting",
+            MeetAt(
                 partner=partnership.partner,
                 x=point[0],
                 y=point[1],
-                has_bucket=partnership.has_bucket,
+                giver=partnership.giver,
                 bucket=partnership.bucket,
                 sink=partnership.sink,
                 sink_x=partnership.sink_x,

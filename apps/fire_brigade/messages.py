@@ -1,26 +1,51 @@
-"""The Fire Brigade's messages (thesis §5.6, Table III), declared as typed classes.
+"""The Fire Brigade's messages (thesis §5.6, Table III): one typed class per meaning.
 
-The thesis's messages carry a communication type (negotiation, accept, deny);
-here that is the header's ``msg_type``, set by the runtime for requests and
-replies. Which layer uses which message:
+Each class carries only the fields its meaning needs, and a layer dispatches on
+the class (``match msg: case MoveBucket(): ...``). The thesis's communication type
+(negotiation, accept, deny) is the header's ``msg_type``, set by the runtime for
+requests and replies. A question and its answer are two classes when they carry
+different things (``RequestInfo`` is answered by ``RobotInfo``).
 
-* ``RequestInfo``: Goal to every robot's Goal (NEGOTIATION: "where are you, what
-  are you?"), answered with the replier's position and kind; also how a layer asks
-  its own Action layer where the robot is.
-* ``ChangeStatus``: status changes between neighbouring layers, down (new
-  responsibilities: "MoveBucket", "Partnered", "Meeting", "Carry", "Rotate",
-  "Move", "SwapBucket", "MakeBucket") and up (their completion: "Exchanged",
-  "Moved"). One class with optional fields, as in the thesis.
-* ``RequestRobotsInRange``: Strategy to Action (NEGOTIATION); the reply lists the
-  robots within range and the asker's own position and speed.
-* ``RequestPartner``: Strategy to Strategy: a partnership request (NEGOTIATION)
-  and its ACCEPT or DENY.
-* ``Meet``: Group Activity to Group Activity: the giver's position and fatigue
-  (NEGOTIATION); the partner answers with the meeting point (ACCEPT) or DENY.
-* ``Meeting``: Task to Task: "I am at the meeting point" (NEGOTIATION), answered
+Between robots (external; the same layer of two robots):
+
+* ``RequestInfo`` / ``RobotInfo``: Goal to Goal, "where are you, what are you?"
+  (NEGOTIATION), answered with the replier's position, kind and speed.
+* ``RequestPartner`` / ``PartnerAnswer``: Strategy to Strategy, a partnership
+  request for a bucket and its destination (NEGOTIATION), answered ACCEPT or DENY
+  with the replier's kind.
+* ``Meet`` / ``MeetingPoint``: Group Activity to Group Activity, the giver's position,
+  kind and speed (NEGOTIATION), answered with the meeting point (ACCEPT) or DENY.
+* ``Meeting``: Task to Task, "I am at the meeting point" (NEGOTIATION), answered
   (ACCEPT) once the partner is there too.
-* ``Handover``: Task to Task: the giver's notice that the bucket changed hands.
-* ``CompletionStatus``: Action to Task: an action finished, and where the robot is.
+* ``Handover``: Task to Task, the giver's notice that the bucket changed hands.
+
+Between the layers of one robot (internal), downwards, new responsibilities:
+
+* ``MoveBucket``: Goal to Strategy, a bucket to get to a sink.
+* ``Partnered``: Strategy to Group Activity, a partnership agreed (giver or receiver).
+* ``Carry``: Strategy to Task (through Group Activity), a leg carried alone.
+* ``MeetAt``: Group Activity to Task, the meeting point of a partnership.
+
+and upwards, their completion:
+
+* ``Exchanged``: Task to Goal (through Group Activity and Strategy): the bucket
+  changed hands.
+* ``Moved``: Task to Strategy (through Group Activity): a ``Carry`` leg is done.
+* ``Abandoned``: Task or Group Activity to Strategy: a partnership given up.
+
+The Action layer's requests (NEGOTIATION, answered when the action is over):
+
+* ``RequestInfo``: from Goal and Group Activity, answered with ``RobotInfo``.
+* ``RequestRobotsInRange``: from Goal and Strategy, answered with ``RobotsInRange``.
+* ``MakeBucket``: from Goal, answered with ``BucketMade``.
+* The Task layer's commands (:data:`Command`): ``Where``, ``Rotate``, ``Move``,
+  ``HoldOut``, ``Withdraw``, ``Give``, ``Take``, each answered with
+  ``CompletionStatus``: the robot's pose, and whether it holds the bucket.
+
+A bucket's destination is a Sink's id and position (``sink``, ``sink_x``,
+``sink_y``) in every message that needs it: three scalar fields rather than a
+nested message or a tuple, which would take every ``RequestPartner`` off the
+codec's fast path.
 """
 
 from __future__ import annotations
@@ -32,18 +57,38 @@ from cas_async import Bounds, Finite, Message, message
 
 __all__ = [
     "MESSAGES",
-    "ChangeStatus",
+    "Abandoned",
+    "BucketMade",
+    "Carry",
+    "Command",
     "CompletionStatus",
     "Coordinate",
     "Distance",
+    "Exchanged",
+    "Give",
     "Handover",
+    "HoldOut",
     "Kind",
+    "MakeBucket",
     "Meet",
+    "MeetAt",
     "Meeting",
+    "MeetingPoint",
+    "Move",
+    "MoveBucket",
+    "Moved",
+    "PartnerAnswer",
+    "Partnered",
     "RequestInfo",
     "RequestPartner",
     "RequestRobotsInRange",
+    "RobotInfo",
+    "RobotsInRange",
+    "Rotate",
     "Speed",
+    "Take",
+    "Where",
+    "Withdraw",
 ]
 
 
@@ -65,88 +110,79 @@ class Kind(enum.IntEnum):
     TRANSPORTER = 2
 
 
+# -- between robots ---------------------------------------------------------------------------
+
+
 @message
 class RequestInfo(Message):
-    """Position and kind of a robot (and its current speed, 0 when immobile)."""
+    """Where is a robot, and what is it? Answered with :class:`RobotInfo`.
 
-    x: Coordinate = 0.0
-    y: Coordinate = 0.0
-    kind: Kind = Kind.TRANSPORTER
-    speed: Speed = 0.0
+    Sent to other robots' Goal layers, and by a layer to its own Action layer.
+    """
 
 
 @message
-class ChangeStatus(Message):
-    """A new responsibility (downwards) or its completion (upwards); see the module docs.
+class RobotInfo(Message):
+    """A robot's position, kind and current speed (0 when immobile)."""
 
-    ``x, y`` is the point the status is about (a meeting point, a leg's end, the
-    robot's position); ``sink`` and ``sink_x, sink_y`` the bucket's destination;
-    ``deal`` identifies a partnership (see ``RequestPartner``).
-    """
-
-    status: str
-    partner: int = -1
-    x: Coordinate = 0.0
-    y: Coordinate = 0.0
-    has_bucket: bool = False
-    bucket: int = -1
-    sink: int = -1
-    sink_x: Coordinate = 0.0
-    sink_y: Coordinate = 0.0
-    deal: int = -1
-
-
-@message
-class RequestRobotsInRange(Message):
-    """The robots within ``radius`` (reply: ids and positions, nearest first).
-
-    The reply also carries the asking robot's own position and current speed, which
-    the Strategy needs to estimate meeting times.
-    """
-
-    radius: Distance
-    ids: list[int] | None = None
-    xs: list[Coordinate] | None = None
-    ys: list[Coordinate] | None = None
-    x: Coordinate = 0.0
-    y: Coordinate = 0.0
-    speed: Speed = 0.0
+    x: Coordinate
+    y: Coordinate
+    kind: Kind
+    speed: Speed
 
 
 @message
 class RequestPartner(Message):
-    """A partnership request (NEGOTIATION) from a robot holding ``bucket``, or its answer.
+    """Will you take ``bucket`` (NEGOTIATION)? Answered with :class:`PartnerAnswer`.
 
-    The request carries the asker's position, kind and the bucket's destination; the
-    answer (ACCEPT or DENY) carries the replier's position and kind. An accepted
-    request's ``msg_id`` becomes the partnership's ``deal``: the later messages of
-    the partnership carry it, so a late message of an earlier partnership between
-    the same two robots is never taken for one of this partnership.
+    The asker's position and kind, and the bucket's destination: the Sink ``sink``
+    at ``sink_x, sink_y``. An accepted request's ``msg_id`` becomes the
+    partnership's ``deal``: the later messages of the partnership carry it, so a
+    late message of an earlier partnership between the same two robots is never
+    taken for one of this partnership.
     """
 
     x: Coordinate
     y: Coordinate
     kind: Kind
-    bucket: int = -1
-    sink: int = -1
-    sink_x: Coordinate = 0.0
-    sink_y: Coordinate = 0.0
+    bucket: int
+    sink: int
+    sink_x: Coordinate
+    sink_y: Coordinate
+
+
+@message
+class PartnerAnswer(Message):
+    """The answer to a :class:`RequestPartner`: ACCEPT or DENY, and the replier's kind."""
+
+    kind: Kind
 
 
 @message
 class Meet(Message):
-    """Coordinating the meeting point.
+    """The giver's position, kind and speed now (0 when immobile), to agree where to meet.
 
-    The giver sends its position, kind and fatigue (``speed`` now; 0 when immobile)
-    as a NEGOTIATION; the partner answers ACCEPT with the meeting point in ``x, y``,
-    or DENY when it is not partnered with the giver.
+    Sent as a NEGOTIATION, answered with :class:`MeetingPoint`.
     """
 
     x: Coordinate
     y: Coordinate
-    kind: Kind = Kind.TRANSPORTER
-    speed: Speed = 0.0
-    deal: int = -1
+    kind: Kind
+    speed: Speed
+    deal: int
+
+
+@message
+class MeetingPoint(Message):
+    """The answer to :class:`Meet`: ACCEPT with where to meet, or DENY.
+
+    A partner refuses (DENY) a ``Meet`` of a partnership it does not (or no longer)
+    have; ``x, y`` then repeat the giver's own position: there is nowhere to go.
+    """
+
+    x: Coordinate
+    y: Coordinate
+    deal: int
 
 
 @message
@@ -164,26 +200,245 @@ class Handover(Message):
     deal: int
 
 
+# -- down the stack: responsibilities ---------------------------------------------------------
+
+
+@message
+class MoveBucket(Message):
+    """Goal to Strategy: get ``bucket`` to the Sink ``sink`` at ``sink_x, sink_y``."""
+
+    bucket: int
+    sink: int
+    sink_x: Coordinate
+    sink_y: Coordinate
+
+
+@message
+class Partnered(Message):
+    """Strategy to Group Activity: a partnership with ``partner`` over ``bucket``.
+
+    ``giver`` tells which side this robot is on; the destination travels with the
+    bucket; ``deal`` identifies the partnership (see :class:`RequestPartner`).
+    """
+
+    partner: int
+    giver: bool
+    bucket: int
+    sink: int
+    sink_x: Coordinate
+    sink_y: Coordinate
+    deal: int
+
+
+@message
+class Carry(Message):
+    """Strategy to Task (through Group Activity): carry the bucket alone to ``x, y``."""
+
+    x: Coordinate
+    y: Coordinate
+
+
+@message
+class MeetAt(Message):
+    """Group Activity to Task: meet ``partner`` at ``x, y`` and swap the bucket there.
+
+    The rest is the partnership's (see :class:`Partnered`).
+    """
+
+    partner: int
+    x: Coordinate
+    y: Coordinate
+    giver: bool
+    bucket: int
+    sink: int
+    sink_x: Coordinate
+    sink_y: Coordinate
+    deal: int
+
+
+# -- up the stack: completions ----------------------------------------------------------------
+
+
+@message
+class Exchanged(Message):
+    """Task to Goal: ``bucket`` changed hands with ``partner``; this robot is at ``x, y``.
+
+    ``has_bucket``: whether this robot holds the bucket now (a receiver, unless it
+    is a Sink, which disposes of what it receives). The destination is the
+    bucket's: a receiver takes it over.
+    """
+
+    partner: int
+    bucket: int
+    has_bucket: bool
+    x: Coordinate
+    y: Coordinate
+    sink: int
+    sink_x: Coordinate
+    sink_y: Coordinate
+
+
+@message
+class Moved(Message):
+    """Task to Strategy: a :class:`Carry` leg is done; the robot is at ``x, y``."""
+
+    x: Coordinate
+    y: Coordinate
+
+
+@message
+class Abandoned(Message):
+    """Task or Group Activity to Strategy: the partnership with ``partner`` was given up.
+
+    ``has_bucket``: whether this robot holds the bucket (a giver does: it looks for
+    another partner).
+    """
+
+    partner: int
+    has_bucket: bool
+
+
+# -- to the Action layer ----------------------------------------------------------------------
+
+
+@message
+class RequestRobotsInRange(Message):
+    """Which robots are within ``radius``? Answered with :class:`RobotsInRange`."""
+
+    radius: Distance
+
+
+@message
+class RobotsInRange(Message):
+    """The robots within range, nearest first (``ids`` at ``xs, ys``).
+
+    Also the asking robot's own position and current speed, which the Strategy
+    needs to estimate meeting times.
+    """
+
+    ids: list[int]
+    xs: list[Coordinate]
+    ys: list[Coordinate]
+    x: Coordinate
+    y: Coordinate
+    speed: Speed
+
+
+@message
+class MakeBucket(Message):
+    """Make a new bucket in the robot's hands (a Generator). Answered with :class:`BucketMade`."""
+
+
+@message
+class BucketMade(Message):
+    """The bucket made, and where the robot is."""
+
+    bucket: int
+    x: Coordinate
+    y: Coordinate
+
+
+@message
+class Where(Message):
+    """No action: report the pose, and whether the robot holds a bucket."""
+
+
+@message
+class Rotate(Message):
+    """Turn to face ``x, y``."""
+
+    x: Coordinate
+    y: Coordinate
+
+
+@message
+class Move(Message):
+    """Drive to ``x, y``."""
+
+    x: Coordinate
+    y: Coordinate
+
+
+@message
+class HoldOut(Message):
+    """Hold the hands out to ``partner``: a hand-over from it may succeed (the thesis's Accept)."""
+
+    partner: int
+
+
+@message
+class Withdraw(Message):
+    """Withdraw the hands from ``partner``; report whether ``bucket`` is in them."""
+
+    partner: int
+    bucket: int
+
+
+@message
+class Give(Message):
+    """Hand ``bucket`` over to ``partner`` (it fails into hands not held out)."""
+
+    bucket: int
+    partner: int
+
+
+@message
+class Take(Message):
+    """Take ``bucket``, which ``partner`` reported handing over (a Sink disposes of it)."""
+
+    bucket: int
+    partner: int
+
+
 @message
 class CompletionStatus(Message):
-    """The Action layer's report: what finished, and the robot's pose and bucket now."""
+    """The Action layer's report of a :data:`Command`: the robot's pose now.
 
-    action: str
-    x: Coordinate = 0.0
-    y: Coordinate = 0.0
-    heading: Coordinate = 0.0
-    has_bucket: bool = False
-    bucket: int = -1
+    ``has_bucket``: whether the command's bucket is held now (``Withdraw``,
+    ``Give``, ``Take``); for the other commands, whether any bucket is held.
+    """
+
+    x: Coordinate
+    y: Coordinate
+    heading: Coordinate
+    has_bucket: bool
+
+
+Command: TypeAlias = Where | Rotate | Move | HoldOut | Withdraw | Give | Take
+"""The Task layer's commands to the Action layer, each answered with a CompletionStatus."""
 
 
 MESSAGES: tuple[type[Message], ...] = (
+    # between robots
     RequestInfo,
-    ChangeStatus,
-    RequestRobotsInRange,
+    RobotInfo,
     RequestPartner,
+    PartnerAnswer,
     Meet,
+    MeetingPoint,
     Meeting,
     Handover,
+    # down the stack
+    MoveBucket,
+    Partnered,
+    Carry,
+    MeetAt,
+    # up the stack
+    Exchanged,
+    Moved,
+    Abandoned,
+    # to the Action layer, and its answers
+    RequestRobotsInRange,
+    RobotsInRange,
+    MakeBucket,
+    BucketMade,
+    Where,
+    Rotate,
+    Move,
+    HoldOut,
+    Withdraw,
+    Give,
+    Take,
     CompletionStatus,
 )
-"""Every message of the Fire Brigade's stack: they make up its fingerprint."""
+"""Every message of the Fire Brigade's stack, each once: they make up its fingerprint."""

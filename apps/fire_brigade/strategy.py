@@ -1,18 +1,20 @@
 """The Strategy layer (thesis Fig. 29): finding a partner for the bucket.
 
-With a bucket to move (``"MoveBucket"`` from the Goal layer) it asks the Action
-layer for the robots in range, ranks them with :meth:`Strategy.choose` (the one
-method a strategy variant overrides, §5.7), and asks them in that order
-(``RequestPartner``) until one accepts. Then it hands the partnership to the
-Group Activity layer (``"Partnered"``). When nobody accepts, a Transporter carries
-the bucket one ``search_step`` toward its sink and looks again; a Generator, which
-cannot move, waits ``retry_interval`` and asks again within a wider radius.
+With a bucket to move (``MoveBucket`` from the Goal layer) it asks the Action
+layer for the robots in range (``RequestRobotsInRange``, answered with
+``RobotsInRange``), ranks them with :meth:`Strategy.choose` (the one method a
+strategy variant overrides, §5.7), and asks them in that order (``RequestPartner``)
+until one accepts (``PartnerAnswer``). Then it hands the partnership to the Group
+Activity layer (``Partnered``). When nobody accepts, a Transporter carries the
+bucket one ``search_step`` toward its sink (``Carry``, done when ``Moved`` comes
+back) and looks again; a Generator, which cannot move, waits ``retry_interval``
+and asks again within a wider radius.
 
 It also answers other robots' requests: an idle Transporter (no bucket, no
 partner) and a Sink accept; everyone else refuses. Partnerships are not
-interruptible: they last until the bucket changed hands (``"Exchanged"``), which
+interruptible: they last until the bucket changed hands (``Exchanged``), which
 is passed up to the Goal layer, or until a layer below gives up on a silent
-partner (``"Abandoned"``): a giver then looks for another partner, a receiver is
+partner (``Abandoned``): a giver then looks for another partner, a receiver is
 free again.
 
 Over a lossy network a request left unanswered for ``timeout`` is sent again,
@@ -30,7 +32,19 @@ from cas_async import Message, MsgType, SpeedProfile
 
 from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import distance
-from .messages import ChangeStatus, Kind, RequestPartner, RequestRobotsInRange
+from .messages import (
+    Abandoned,
+    Carry,
+    Exchanged,
+    Kind,
+    MoveBucket,
+    Moved,
+    PartnerAnswer,
+    Partnered,
+    RequestPartner,
+    RequestRobotsInRange,
+    RobotsInRange,
+)
 
 __all__ = ["Candidate", "SearchView", "Strategy"]
 
@@ -95,7 +109,7 @@ class Strategy(BrigadeLayer):
         self.sink = -1
         self.sink_at: Point = (0.0, 0.0)
         self.here: Point = (0.0, 0.0)
-        self.searching = False  # between "MoveBucket" and a partner or a carried leg
+        self.searching = False  # between MoveBucket and a partner or a carried leg
         self.to_ask: list[int] = []
         self.asked = -1  # the robot whose answer is awaited
         self.asked_in = -1  # the msg_id of that request: its answer's corr_id
@@ -116,14 +130,13 @@ class Strategy(BrigadeLayer):
         """A failed round is retried (``"retry"``); an answer is overdue (``"answer"``)."""
         if key == "retry":
             await self._search()
-        elif key == "answer" and self.asked >= 0:
-            self._no_answer()
+        elif key == "answer" and self.asked >= 0 and self.question is not None:
+            self._no_answer(self.question)
 
-    def _no_answer(self) -> None:
-        """The robot asked has not answered in time: ask again, or count it as silent."""
-        assert self.question is not None
+    def _no_answer(self, question: RequestPartner) -> None:
+        """The robot asked has not answered ``question`` in time: ask again, or give it up."""
         if self.tries <= self.params.retries:
-            self.resend(self.asked, self.question)
+            self.resend(self.asked, question)
             self._await_answer()
         else:
             self.log.info(
@@ -147,37 +160,33 @@ class Strategy(BrigadeLayer):
 
     async def store_intra_msg(self, msg: Message) -> None:
         """From the Goal layer: a bucket to move; from below: a hand-over or a leg done."""
-        if not isinstance(msg, ChangeStatus):
-            self.unexpected(msg, "the Strategy layer expects ChangeStatus")
-        elif msg.status == "MoveBucket":
-            self.bucket, self.sink = msg.bucket, msg.sink
-            self.sink_at = (msg.sink_x, msg.sink_y)
-            self.radius = self.params.range
-            await self._search()
-        elif msg.status == "Moved":
-            await self._search()
-        elif msg.status == "Abandoned":
-            self.partners.discard(msg.partner)
-            if msg.has_bucket:  # a giver whose partner went silent: find another
+        match msg:
+            case MoveBucket():
+                self.bucket, self.sink = msg.bucket, msg.sink
+                self.sink_at = (msg.sink_x, msg.sink_y)
+                self.radius = self.params.range
                 await self._search()
-        elif msg.status == "Exchanged":
-            self.partners.discard(msg.partner)
-            # Hold the bucket from now on, not from the Goal layer's "MoveBucket": a
-            # partnership request arriving in between must be refused.
-            self.bucket = msg.bucket if msg.has_bucket else -1
-            self.came_from = msg.partner if msg.has_bucket else -1
-            self.send_up(msg)
-        else:
-            self.unexpected(msg, f"unknown status {msg.status!r}")
+            case Moved():
+                await self._search()
+            case Abandoned(partner=partner, has_bucket=has_bucket):
+                self.partners.discard(partner)
+                if has_bucket:  # a giver whose partner went silent: find another
+                    await self._search()
+            case Exchanged(partner=partner, has_bucket=has_bucket):
+                self.partners.discard(partner)
+                # Hold the bucket from now on, not from the Goal layer's MoveBucket: a
+                # partnership request arriving in between must be refused.
+                self.bucket = msg.bucket if has_bucket else -1
+                self.came_from = partner if has_bucket else -1
+                self.send_up(msg)
+            case _:
+                self.unexpected(msg, "not a message the Strategy layer takes from its neighbours")
 
     async def _search(self) -> None:
         self.searching = True
         found = await self.request_layer(
-            ACTION, RequestRobotsInRange(self.radius), reply=RequestRobotsInRange
+            ACTION, RequestRobotsInRange(self.radius), reply=RobotsInRange
         )
-        assert found.ids is not None
-        assert found.xs is not None
-        assert found.ys is not None
         self.here = (found.x, found.y)
         candidates = tuple(
             Candidate(rid, (x, y))
@@ -258,33 +267,29 @@ class Strategy(BrigadeLayer):
             self.here[0] + (self.sink_at[0] - self.here[0]) * fraction,
             self.here[1] + (self.sink_at[1] - self.here[1]) * fraction,
         )
-        self.send_down(
-            ChangeStatus(
-                "Carry",
-                x=target[0],
-                y=target[1],
-                has_bucket=True,
-                bucket=self.bucket,
-                sink=self.sink,
-                sink_x=self.sink_at[0],
-                sink_y=self.sink_at[1],
-            )
-        )
+        self.send_down(Carry(target[0], target[1]))
 
     # -- other robots' requests, and answers to ours -----------------------------------------
 
     async def handle_msg(self, msg: Message) -> None:
         """Answers partnership requests; takes the answers to this robot's own."""
-        if not isinstance(msg, RequestPartner):
-            self.unexpected(msg, "the Strategy layer only exchanges RequestPartner")
-        elif not self.in_world((msg.x, msg.y), (msg.sink_x, msg.sink_y)):
-            self.unexpected(msg, "a position outside the world")
-        elif msg.msg_type == MsgType.NEGOTIATION:
-            self._answer(msg)
-        elif msg.robot_id != self.asked or msg.corr_id != self.asked_in:
+        match msg:
+            case RequestPartner(msg_type=MsgType.NEGOTIATION):
+                if self.in_world((msg.x, msg.y), (msg.sink_x, msg.sink_y)):
+                    self._answer(msg)
+                else:
+                    self.unexpected(msg, "a position outside the world")
+            case PartnerAnswer():
+                self._answered(msg)
+            case _:
+                self.unexpected(msg, "the Strategy layer only takes RequestPartner and its answer")
+
+    def _answered(self, msg: PartnerAnswer) -> None:
+        """The answer to this robot's request: a partner, or the next robot to ask."""
+        if msg.robot_id != self.asked or msg.corr_id != self.asked_in:
             self.late(msg, "not the answer awaited")
         elif msg.msg_type == MsgType.ACCEPT:
-            self._partnered(msg.robot_id, giver=True, deal=self.asked_in)
+            self._partnered(msg.robot_id, giver=True, bucket=self.bucket, deal=self.asked_in)
         else:
             if msg.kind != Kind.TRANSPORTER:
                 self.stations.add(msg.robot_id)
@@ -303,28 +308,25 @@ class Strategy(BrigadeLayer):
     def _answer(self, msg: RequestPartner) -> None:
         if msg.kind != Kind.TRANSPORTER:
             self.stations.add(msg.robot_id)  # so this robot never asks it in turn
-        here = RequestPartner(self.here[0], self.here[1], self.kind)
         if not self._free(msg.kind):
-            here.msg_type = MsgType.DENY
-            self.reply(msg, here)
+            self.reply(msg, PartnerAnswer(self.kind, msg_type=MsgType.DENY))
             return
         self.bucket, self.sink = -1, msg.sink
         self.sink_at = (msg.sink_x, msg.sink_y)
         self._partnered(msg.robot_id, giver=False, bucket=msg.bucket, deal=msg.msg_id)
-        self.reply(msg, here)
+        self.reply(msg, PartnerAnswer(self.kind))
 
-    def _partnered(self, partner: int, *, giver: bool, deal: int, bucket: int = -1) -> None:
+    def _partnered(self, partner: int, *, giver: bool, bucket: int, deal: int) -> None:
         # Group Activity hears of the partnership before the partner does: its Meet
         # request can only arrive after this robot's answer.
         self.partners.add(partner)
         self.asked = -1
         self.searching = False
         self.send_down(
-            ChangeStatus(
-                "Partnered",
+            Partnered(
                 partner=partner,
-                has_bucket=giver,
-                bucket=self.bucket if giver else bucket,
+                giver=giver,
+                bucket=bucket,
                 sink=self.sink,
                 sink_x=self.sink_at[0],
                 sink_y=self.sink_at[1],

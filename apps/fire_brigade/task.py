@@ -1,22 +1,24 @@
 """The Task layer (thesis Fig. 31): getting to the meeting point and swapping the bucket.
 
 It compares where the robot is with where it should be and asks the Action layer
-to rotate (to face the target) or move, until the robot is there. Then it tells
-the partner (``Meeting``, NEGOTIATION); the partner answers (ACCEPT) once it is
-there too. When both are at the meeting point the giver's Action layer hands the
-bucket over, and the giver sends ``Handover``; the receiver's Action layer then
-takes it. Each side reports ``"Exchanged"`` up the stack. A solo leg (``"Carry"``)
-is a move followed by ``"Moved"``.
+to rotate (``Rotate``, to face the target) or move (``Move``), until the robot is
+there. On ``MeetAt`` it then tells the partner (``Meeting``, NEGOTIATION); the
+partner answers (ACCEPT) once it is there too. When both are at the meeting point
+the giver's Action layer hands the bucket over (``Give``), and the giver sends
+``Handover``; the receiver's Action layer then takes it (``Take``). Each side
+reports ``Exchanged`` up the stack. A solo leg (``Carry``) is a move followed by
+``Moved``.
 
 Over a lossy network the hand-over must still be all or nothing. The receiver
-holds out its hands to the giver (``"Accept"``) before it drives to the meeting
+holds out its hands to the giver (``HoldOut``) before it drives to the meeting
 point, and the giver's hand-over succeeds only into held-out hands. At the point
 each robot says "I am here" every ``timeout`` until it knows the partner is there
 too. A robot that hears nothing from its partner for ``patience`` seconds gives
-up: the giver still holds the bucket and looks for another partner; the receiver
-withdraws its hands (``"Withdraw"``) and looks into them: if the bucket is there,
-the hand-over happened and only its notice was lost; if not, no hand-over can
-happen any more. Either way both robots agree with what physically happened.
+up (``Abandoned``): the giver still holds the bucket and looks for another
+partner; the receiver withdraws its hands (``Withdraw``) and looks into them: if
+the bucket is there, the hand-over happened and only its notice was lost; if not,
+no hand-over can happen any more. Either way both robots agree with what
+physically happened.
 """
 
 from __future__ import annotations
@@ -28,7 +30,24 @@ from dataclasses import dataclass
 from cas_async import Message, MsgType, RequestTimeout
 
 from .base import BrigadeLayer, Params
-from .messages import ChangeStatus, CompletionStatus, Handover, Meeting
+from .messages import (
+    Abandoned,
+    Carry,
+    Command,
+    CompletionStatus,
+    Exchanged,
+    Give,
+    Handover,
+    HoldOut,
+    MeetAt,
+    Meeting,
+    Move,
+    Moved,
+    Rotate,
+    Take,
+    Where,
+    Withdraw,
+)
 
 __all__ = ["Task"]
 
@@ -40,7 +59,7 @@ _THERE = 1e-9
 class _Meeting:
     """One partnership's progress at the meeting point."""
 
-    plan: ChangeStatus
+    plan: MeetAt
     heard: float  # when the partner was last heard of (or the robot arrived)
     arrived: bool = False
     partner_arrived: bool = False
@@ -55,21 +74,21 @@ class Task(BrigadeLayer):
         self.meetings: dict[int, _Meeting] = {}  # partner -> progress
         self.x = self.y = self.heading = 0.0
 
-    async def _act(self, command: ChangeStatus) -> CompletionStatus:
+    async def _act(self, command: Command) -> CompletionStatus:
         done = await self.request_down(command, reply=CompletionStatus)
         self.x, self.y, self.heading = done.x, done.y, done.heading
         return done
 
     async def _go_to(self, x: float, y: float) -> None:
         """Rotate to face the target, then move; evaluate after each action (Fig. 31)."""
-        await self._act(ChangeStatus("Where"))
+        await self._act(Where())
         while math.hypot(x - self.x, y - self.y) > _THERE:
             facing = math.atan2(y - self.y, x - self.x)
             turn = math.remainder(facing - self.heading, math.tau)
             if abs(turn) > _THERE:
-                await self._act(ChangeStatus("Rotate", x=x, y=y))
+                await self._act(Rotate(x, y))
             else:
-                await self._act(ChangeStatus("Move", x=x, y=y))
+                await self._act(Move(x, y))
 
     async def on_timer(self, key: Hashable) -> None:
         """At a meeting point: call the partner again, or give a silent partner up.
@@ -101,39 +120,44 @@ class Task(BrigadeLayer):
 
     def _call(self, partner: int, meeting: _Meeting) -> None:
         """Says "I am here" until the partner is known there (the receiver: and handed over)."""
-        waiting = not meeting.partner_arrived or not (
-            meeting.plan.has_bucket or meeting.handed_over
-        )
+        waiting = not meeting.partner_arrived or not (meeting.plan.giver or meeting.handed_over)
         if waiting:
             self.send(partner, Meeting(meeting.plan.deal, msg_type=MsgType.NEGOTIATION))
         self.wake_after(self.params.timeout, ("call", partner, meeting.plan.deal))
 
     async def store_intra_msg(self, msg: Message) -> None:
         """A meeting or a solo leg from above."""
-        if not isinstance(msg, ChangeStatus):
-            self.unexpected(msg, "the Task layer expects ChangeStatus")
-        elif msg.status == "Meeting":
-            if not msg.has_bucket:  # hands out to the giver, and to nobody else
-                await self._act(ChangeStatus("Accept", partner=msg.partner))
-            meeting = self.meetings[msg.partner] = _Meeting(msg, self.clock.now())
-            if self.params.mobile:
-                await self._go_to(msg.x, msg.y)
-            meeting.arrived = True
-            self._heard(msg.partner, meeting, self.clock.now())
-            self._call(msg.partner, meeting)
-            await self._progress(msg.partner)
-        elif msg.status == "Carry":
-            await self._go_to(msg.x, msg.y)
-            moved = ChangeStatus("Moved", x=self.x, y=self.y, has_bucket=True, bucket=msg.bucket)
-            self.send_up(moved)
-        else:
-            self.unexpected(msg, f"unknown status {msg.status!r}")
+        match msg:
+            case MeetAt():
+                await self._meet(msg)
+            case Carry(x=x, y=y):
+                await self._go_to(x, y)
+                self.send_up(Moved(self.x, self.y))
+            case _:
+                self.unexpected(msg, "the Task layer only takes MeetAt and Carry from above")
+
+    async def _meet(self, plan: MeetAt) -> None:
+        """Drives to the meeting point, and calls the partner from there."""
+        partner = plan.partner
+        if not plan.giver:  # hands out to the giver, and to nobody else
+            await self._act(HoldOut(partner))
+        meeting = self.meetings[partner] = _Meeting(plan, self.clock.now())
+        if self.params.mobile:
+            await self._go_to(plan.x, plan.y)
+        meeting.arrived = True
+        self._heard(partner, meeting, self.clock.now())
+        self._call(partner, meeting)
+        await self._progress(partner)
 
     async def handle_msg(self, msg: Message) -> None:
         """The partner's Meeting (it is there) or Handover (the bucket is ours)."""
-        if not isinstance(msg, Meeting | Handover):
-            self.unexpected(msg, "the Task layer only exchanges Meeting and Handover")
-            return
+        match msg:
+            case Meeting() | Handover():
+                await self._from_partner(msg)
+            case _:
+                self.unexpected(msg, "the Task layer only exchanges Meeting and Handover")
+
+    async def _from_partner(self, msg: Meeting | Handover) -> None:
         if isinstance(msg, Handover) and msg.msg_type == MsgType.NEGOTIATION:
             # Sent only once the bucket is in this robot's hands: always true, and the
             # giver stops asking once it hears so.
@@ -149,7 +173,7 @@ class Task(BrigadeLayer):
             meeting.partner_arrived = True
             if msg.msg_type == MsgType.NEGOTIATION and meeting.arrived:
                 self.reply(msg, Meeting(meeting.plan.deal))
-        elif not meeting.plan.has_bucket:
+        elif not meeting.plan.giver:
             meeting.partner_arrived = meeting.handed_over = True
         else:
             self.unexpected(msg, "a Handover to the giver")
@@ -162,23 +186,19 @@ class Task(BrigadeLayer):
         if meeting is None or not (meeting.arrived and meeting.partner_arrived):
             return
         plan = meeting.plan
-        swap = ChangeStatus(
-            "SwapBucket", partner=partner, bucket=plan.bucket, has_bucket=plan.has_bucket
-        )
-        if plan.has_bucket:
-            done = await self._act(swap)
-            if done.has_bucket:  # the partner withdrew its hands: it gave up on us
-                del self.meetings[partner]
-                self._report("Abandoned", plan, done)
-                return
+        if plan.giver:
+            done = await self._act(Give(plan.bucket, partner))
             del self.meetings[partner]
-            self._report("Exchanged", plan, done)
+            if done.has_bucket:  # the partner withdrew its hands: it gave up on us
+                self._abandoned(plan, done)
+                return
+            self._exchanged(plan, done)
             await self._notify(partner, plan)
         elif meeting.handed_over:
             del self.meetings[partner]
-            self._report("Exchanged", plan, await self._act(swap))
+            self._exchanged(plan, await self._act(Take(plan.bucket, partner)))
 
-    async def _notify(self, partner: int, plan: ChangeStatus) -> None:
+    async def _notify(self, partner: int, plan: MeetAt) -> None:
         """Tells the receiver its hands hold the bucket (it would find out by itself anyway)."""
         try:
             await self.request(
@@ -195,28 +215,30 @@ class Task(BrigadeLayer):
         del self.meetings[partner]
         plan = meeting.plan
         self.log.info("robot %d silent for %g s: meeting given up", partner, self.params.patience)
-        if plan.has_bucket:  # the giver never handed over: it still holds the bucket
-            self._report("Abandoned", plan, await self._act(ChangeStatus("Where")))
+        if plan.giver:  # the giver never handed over: it still holds the bucket
+            self._abandoned(plan, await self._act(Where()))
             return
-        withdrawn = await self._act(ChangeStatus("Withdraw", partner=partner, bucket=plan.bucket))
+        withdrawn = await self._act(Withdraw(partner, plan.bucket))
         if withdrawn.has_bucket:  # handed over; only the notice was lost
-            swap = ChangeStatus("SwapBucket", partner=partner, bucket=plan.bucket)
-            self._report("Exchanged", plan, await self._act(swap))
+            self._exchanged(plan, await self._act(Take(plan.bucket, partner)))
         else:
-            self._report("Abandoned", plan, withdrawn)
+            self._abandoned(plan, withdrawn)
 
-    def _report(self, status: str, plan: ChangeStatus, done: CompletionStatus) -> None:
+    def _exchanged(self, plan: MeetAt, done: CompletionStatus) -> None:
+        """The meeting ended with the bucket in the receiver's hands: say so upwards."""
         self.send_up(
-            ChangeStatus(
-                status,
+            Exchanged(
                 partner=plan.partner,
+                bucket=plan.bucket,
+                has_bucket=done.has_bucket,  # a Sink disposes of what it receives
                 x=self.x,
                 y=self.y,
-                has_bucket=done.has_bucket,  # a Sink disposes of what it receives
-                bucket=plan.bucket,
                 sink=plan.sink,
                 sink_x=plan.sink_x,
                 sink_y=plan.sink_y,
-                deal=plan.deal,
             )
         )
+
+    def _abandoned(self, plan: MeetAt, done: CompletionStatus) -> None:
+        """The meeting ended without a hand-over: say so upwards."""
+        self.send_up(Abandoned(plan.partner, has_bucket=done.has_bucket))

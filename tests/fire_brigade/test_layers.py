@@ -25,7 +25,12 @@ from apps.fire_brigade.base import ACTION, GROUP, STRATEGY, Params
 from apps.fire_brigade.estimate import carrying_time, distance, meeting_point
 from apps.fire_brigade.goal import Goal
 from apps.fire_brigade.group_activity import GroupActivity
-from apps.fire_brigade.messages import Kind, RequestPartner, RequestRobotsInRange
+from apps.fire_brigade.messages import (
+    Kind,
+    PartnerAnswer,
+    RequestPartner,
+    RequestRobotsInRange,
+)
 from apps.fire_brigade.strategy import SearchView
 from apps.fire_brigade.task import Task
 from cas_async import (
@@ -117,7 +122,7 @@ class Recording(TimeStrategy):
         return super().choose(view)
 
     async def handle_msg(self, msg: Message) -> None:
-        if isinstance(msg, RequestPartner) and msg.msg_type != MsgType.NEGOTIATION:
+        if isinstance(msg, PartnerAnswer):
             self.answers.append((msg.robot_id, msg.msg_type))
         await super().handle_msg(msg)
 
@@ -127,8 +132,8 @@ class Asker(Layer):
 
     async def ask(self, robot: int, kind: Kind) -> MsgType:
         """How ``robot`` answers a giver of ``kind`` (ACCEPT or DENY)."""
-        request = RequestPartner(0.0, 0.0, kind, bucket=99, sink=-1)
-        answer = await self.request(robot, request)
+        request = RequestPartner(0.0, 0.0, kind, bucket=99, sink=2, sink_x=5.0, sink_y=9.0)
+        answer = await self.request(robot, request, reply=PartnerAnswer)
         return answer.msg_type
 
 

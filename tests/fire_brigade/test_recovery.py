@@ -18,11 +18,13 @@ import pytest
 
 from apps.fire_brigade.messages import (
     MESSAGES,
-    ChangeStatus,
+    Abandoned,
+    Exchanged,
     Handover,
     Meet,
     Meeting,
-    RequestPartner,
+    MeetingPoint,
+    PartnerAnswer,
 )
 from apps.fire_brigade.strategy import Strategy
 from cas_async import Message, MsgType
@@ -44,7 +46,8 @@ PATIENCE = 5.0
 
 
 News = list[tuple[int, str, int, bool]]
-"""What reached Strategy layers from below: (robot, status, partner, has_bucket)."""
+"""Meetings' ends reaching Strategy layers from below: (robot, "Exchanged" or "Abandoned",
+partner, has_bucket)."""
 
 
 @pytest.fixture
@@ -54,8 +57,9 @@ def news(monkeypatch: pytest.MonkeyPatch) -> News:
     hear = Strategy.store_intra_msg
 
     async def recording(self: Strategy, msg: Message) -> None:
-        if isinstance(msg, ChangeStatus):
-            seen.append((self.robot_id, msg.status, msg.partner, msg.has_bucket))
+        match msg:
+            case Exchanged() | Abandoned():
+                seen.append((self.robot_id, type(msg).__name__, msg.partner, msg.has_bucket))
         await hear(self, msg)
 
     monkeypatch.setattr(Strategy, "store_intra_msg", recording)
@@ -120,7 +124,7 @@ class RefuseFirstHandOver:
     def __call__(self, _now: float, receiver: int, msg: Message) -> Verdict:
         if isinstance(msg, Meet) and msg.msg_type == MsgType.NEGOTIATION and self.deal is None:
             self.deal, self.giver, self.receiver = msg.deal, msg.robot_id, receiver
-        elif isinstance(msg, Meet) and msg.deal == self.deal and receiver == self.giver:
+        elif isinstance(msg, MeetingPoint) and msg.deal == self.deal and receiver == self.giver:
             return Hold(self._receiver_gave_up)  # the meeting point, and its re-sent copies
         elif isinstance(msg, Meeting) and msg.deal == self.deal:
             if msg.robot_id == self.giver:
@@ -172,7 +176,7 @@ class AcceptanceLost:
     receiver: int = -1
 
     def __call__(self, _now: float, receiver: int, msg: Message) -> Verdict:
-        if isinstance(msg, RequestPartner) and msg.msg_type == MsgType.ACCEPT:
+        if isinstance(msg, PartnerAnswer) and msg.msg_type == MsgType.ACCEPT:
             if self.deal is None:
                 self.deal, self.asker, self.receiver = msg.corr_id, receiver, msg.robot_id
             if msg.corr_id == self.deal:
@@ -207,6 +211,11 @@ class MeetFromAnEarlierDeal:
     refused: bool = False
 
     def __call__(self, _now: float, receiver: int, msg: Message) -> Verdict:
+        if isinstance(msg, MeetingPoint):
+            denied = msg.msg_type == MsgType.DENY and msg.robot_id == self.sink
+            if denied and receiver == self.giver:
+                self.refused = True
+            return DELIVER
         if not isinstance(msg, Meet):
             return DELIVER
         if msg.msg_type == MsgType.NEGOTIATION and self.deal is None and receiver in SINKS:
@@ -217,8 +226,6 @@ class MeetFromAnEarlierDeal:
                 return DROP  # the re-sent copies: the giver gives this deal up
             if receiver == self.sink and self.later_deal is None:
                 self.later_deal = msg.deal  # the held copy goes first, then this one
-        if msg.msg_type == MsgType.DENY and msg.robot_id == self.sink and receiver == self.giver:
-            self.refused = True
         return DELIVER
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import cas_async
 from apps.fire_brigade import MESSAGES, TimeStrategy
-from apps.fire_brigade.messages import ChangeStatus, Kind, RequestPartner
+from apps.fire_brigade.messages import Exchanged, Kind, RequestPartner
 from cas_async import Layer, MemoryTransport, Message, MsgType, Robot, Swarm, VirtualClock
 from tests.fire_brigade.test_strategies import params
 
@@ -20,13 +20,21 @@ class Asker(Layer):
 
 
 def _ask(target: int, asker: Asker) -> None:
-    asker.send(
-        target, RequestPartner(1.0, 1.0, Kind.TRANSPORTER, bucket=9, msg_type=MsgType.NEGOTIATION)
+    request = RequestPartner(
+        1.0,
+        1.0,
+        Kind.TRANSPORTER,
+        bucket=9,
+        sink=3,
+        sink_x=5.0,
+        sink_y=19.0,
+        msg_type=MsgType.NEGOTIATION,
     )
+    asker.send(target, request)
 
 
 def test_a_transporter_that_just_received_a_bucket_refuses_partners() -> None:
-    """Between "Exchanged" going up and "MoveBucket" coming down, the robot holds a bucket."""
+    """Between Exchanged going up and MoveBucket coming down, the robot holds a bucket."""
 
     async def main() -> list[MsgType]:
         transport, clock = MemoryTransport(), VirtualClock()
@@ -39,9 +47,10 @@ def test_a_transporter_that_just_received_a_bucket_refuses_partners() -> None:
             _ask(1, asker)  # idle: accepted
             await clock.sleep(1)
             # the first partnership completes, and this robot now holds the bucket
-            await strategy.store_intra_msg(
-                ChangeStatus("Exchanged", partner=2, has_bucket=True, bucket=9)
+            exchanged = Exchanged(
+                partner=2, bucket=9, has_bucket=True, x=1.0, y=1.0, sink=3, sink_x=5.0, sink_y=19.0
             )
+            await strategy.store_intra_msg(exchanged)
             _ask(1, asker)
             await clock.sleep(1)
         return [answer.msg_type for answer in asker.answers]
