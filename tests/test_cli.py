@@ -32,9 +32,15 @@ LONG: Final = SCENARIOS / "thesis_5_8_2.toml"
 """25 robots at speed 3: about 230 simulated seconds, so long on scaled real time."""
 
 FAST: Final = ("--virtual", "--set", "mission.buckets=5")
-PLOTS: Final = ("initial_positions.png", "snapshots_by_exchange.png", "snapshots_by_time.png")
+PLOTS: Final = (
+    "initial_positions.png",
+    "snapshots_by_exchange.png",
+    "snapshots_by_time.png",
+    "trajectories.png",
+    "over_time.png",
+)
 PNG_MAGIC: Final = b"\x89PNG\r\n\x1a\n"
-TRACE_HEADER: Final = "t,robot,x,y,exchange"
+TRACE_HEADER: Final = "t,robot,x,y,exchange,carrying"
 
 RUN_LIMIT: Final = 60.0
 """Wall seconds any run may take; only a hung one comes near (the longest takes ~3 s)."""
@@ -172,7 +178,7 @@ def test_trace_csv_has_every_robot_and_every_exchange(virtual_run: tuple[Finishe
     assert exchanges == set(range(1, results["exchanges"] + 1))
 
 
-def test_the_three_figures_are_png_files(virtual_run: tuple[Finished, Path]) -> None:
+def test_the_five_figures_are_png_files(virtual_run: tuple[Finished, Path]) -> None:
     finished, out = virtual_run
     assert sorted(path.name for path in out.glob("*.png")) == sorted(PLOTS)
     for name in PLOTS:

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Generic, Protocol, TypeVar
+from typing import Generic, Protocol, TypeAlias, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 from .._clock import Clock
 from .._robot import Robot
@@ -25,7 +26,14 @@ from .._supervision import RestartPolicy
 from ..sim._environment import Environment
 from ..transport._base import Transport
 
-__all__ = ["Mission", "SimulationApp", "SimulationSetup"]
+__all__ = ["Measure", "Mission", "SimulationApp", "SimulationSetup"]
+
+Measure: TypeAlias = Callable[[Sequence[int], npt.NDArray[np.float64]], float]
+"""A number the application reads off the robots' positions: ``measure(ids, xy)``.
+
+``xy`` has shape ``(n, 2)``, row ``k`` being robot ``ids[k]``'s position. The runner
+evaluates it after the run on every sample and exchange snapshot of the trace.
+"""
 
 C = TypeVar("C")
 """An application's configuration type (its ``config_type``)."""
@@ -66,12 +74,21 @@ class Mission:
         groups: robot ids by label, in the order to show them (e.g. ``"Generator"``).
         extra: returns application-specific figures for the results; called once,
             at the end of the run.
+        measures: named :data:`Measure` functions of the robots' positions. Each
+            is reported over time and by exchange count (results.json ``series`` and
+            ``by_exchange``), and as one number, its mean over the last third of the
+            run (``metrics``, the summary table, sweeps).
+        snapshot_exchanges: exchange counts the figures show robots at, where the
+            run reached them (e.g. the counts of a paper's figures); empty: six
+            counts spread over the run.
     """
 
     robots: Sequence[Robot]
     target: int
     groups: dict[str, list[int]] = field(default_factory=dict)
     extra: Callable[[], dict[str, float | int | str]] | None = None
+    measures: Mapping[str, Measure] = field(default_factory=dict)
+    snapshot_exchanges: Sequence[int] = ()
 
 
 class SimulationApp(Protocol[C]):

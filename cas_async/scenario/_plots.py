@@ -7,7 +7,7 @@ Agg canvas, never through pyplot: no global state, no window, safe in any proces
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
@@ -38,16 +38,29 @@ def write_plots(
     *,
     title: str,
     exchanges_traced: bool = True,
+    snapshot_exchanges: Sequence[int] = (),
+    delivery_times: Sequence[float] = (),
+    series: Mapping[str, Mapping[str, Sequence[float]]] | None = None,
+    item_name: str = "item",
 ) -> list[Path]:
-    """Writes the three figures of a run to ``out_dir``.
+    """Writes the five figures of a run to ``out_dir``.
 
-    ``initial_positions.png``, ``snapshots_by_exchange.png`` and ``snapshots_by_time.png``:
+    ``initial_positions.png``, ``snapshots_by_exchange.png``, ``snapshots_by_time.png``,
+    ``trajectories.png`` and ``over_time.png``:
 
     * initial positions: the first regular sample, robot ids annotated.
-    * by exchange: six snapshots at exchange counts spread evenly from the first
-      to the last snapshot (fewer if fewer exist; a note if there are none).
+    * by exchange: six snapshots: at the ``snapshot_exchanges`` counts the run
+      reached, at the last snapshot, and at counts spread evenly between to fill
+      the six (fewer if fewer exist; a note if there are none).
     * by time: six regular samples at times spread evenly from the first to the
       last (a note if there are none).
+    * trajectories: every robot's path through the regular samples, from a hollow
+      marker (its start) to a filled one (its end), ids at the end.
+    * over time: items delivered and exchanges made over time, and below, each of
+      ``series`` (the application's measures) over time.
+
+    In the snapshots, robot ids are written next to each robot and a robot that
+    carries an item is circled in black.
 
     Args:
         trace: the run's positions.
@@ -60,6 +73,11 @@ def write_plots(
         exchanges_traced: whether the run recorded exchange snapshots (``[run]
             trace_exchanges``); when not, the exchange figure says so rather than
             "no exchanges recorded".
+        snapshot_exchanges: exchange counts to show, where reached (``Mission``).
+        delivery_times: the instant of each delivery (``RunResult.delivery_times``).
+        series: measures over time, ``{name: {"t": [...], "value": [...]}}``
+            (``RunResult.series``).
+        item_name: what the items are called, singular.
 
     Returns:
         The paths written, in the order above.
@@ -91,15 +109,16 @@ def write_plots(
     paths.append(_save(figure, out_dir / "initial_positions.png"))
 
     counts = trace.exchange_counts
-    picks = _spread(len(counts), _PANELS)
+    picks = _exchange_picks(counts, snapshot_exchanges, _PANELS)
     panels = [
         (
             f"after exchange {counts[k]} (t = {trace.exchange_times[k]:.1f} s)",
             trace.exchange_positions[k],
+            trace.exchange_carrying[k],
         )
         for k in picks
     ]
-    figure = _panels(f"{title}: snapshots by exchange", panels, rows, world)
+    figure = _panels(f"{title}: snapshots by exchange", panels, rows, world, trace.ids)
     if not panels:
         _note(
             figure.add_subplot(),
@@ -111,12 +130,109 @@ def write_plots(
 
     times = trace.times
     picks = _at_times(times, _PANELS)
-    panels = [(f"t = {times[k]:.1f} s", trace.positions[k]) for k in picks]
-    figure = _panels(f"{title}: snapshots by time", panels, rows, world)
+    panels = [(f"t = {times[k]:.1f} s", trace.positions[k], trace.carrying[k]) for k in picks]
+    figure = _panels(f"{title}: snapshots by time", panels, rows, world, trace.ids)
     if not panels:
         _note(figure.add_subplot(), "no samples recorded")
     paths.append(_save(figure, out_dir / "snapshots_by_time.png"))
+
+    paths.append(_save(_trajectories(trace, rows, world, title), out_dir / "trajectories.png"))
+    figure = _over_time(trace, delivery_times, series or {}, title, item_name)
+    paths.append(_save(figure, out_dir / "over_time.png"))
     return paths
+
+
+def _exchange_picks(counts: npt.NDArray[np.int64], wanted: Sequence[int], panels: int) -> list[int]:
+    """Snapshot indices: the wanted counts reached, the last, then evenly spread ones."""
+    if not len(counts):
+        return []
+    chosen: set[int] = set()
+    for count in sorted(set(wanted)):
+        k = int(np.searchsorted(counts, count, side="right")) - 1
+        if count <= counts[-1] and k >= 0 and len(chosen) < panels - 1:
+            chosen.add(k)
+    chosen.add(len(counts) - 1)
+    # fill the gaps: each time, the spread index farthest from those chosen
+    spare = set(_spread(len(counts), panels * 4)) - chosen
+    while spare and len(chosen) < panels:
+        best = max(sorted(spare), key=lambda k: min(abs(k - c) for c in chosen))
+        chosen.add(best)
+        spare.discard(best)
+    return sorted(chosen)
+
+
+def _trajectories(
+    trace: Trace, rows: list[tuple[str, list[int]]], world: tuple[float, float], title: str
+) -> Figure:
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(9, 8), dpi=_DPI)
+    figure.suptitle(f"{title}: trajectories")
+    figure.subplots_adjust(left=0.08, right=0.8, bottom=0.08, top=0.9)
+    axes = figure.add_subplot()
+    positions = trace.positions
+    if len(positions) < 2:
+        _note(axes, "fewer than two samples recorded")
+        return figure
+    moved = np.flatnonzero(np.any(positions != positions[0], axis=(0, 2)))
+    for n, k in enumerate(moved.tolist()):
+        path = positions[:, k, :]
+        colour = f"C{n % 10}"
+        axes.plot(path[:, 0], path[:, 1], color=colour, linewidth=0.8, alpha=0.7)
+        axes.scatter(path[0, 0], path[0, 1], s=18, facecolors="none", edgecolors=colour)
+        axes.scatter(path[-1, 0], path[-1, 1], s=18, color=colour)
+        axes.annotate(
+            str(trace.ids[k]), path[-1], xytext=(3, 3), textcoords="offset points", fontsize=6
+        )
+    still = [
+        (label, [k for k in members if k not in set(moved.tolist())]) for label, members in rows
+    ]
+    _scatter(axes, positions[-1], [(label, ks) for label, ks in still if ks], world, size=40)
+    if any(ks for _, ks in still):
+        axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    axes.set_title(
+        f"t = {trace.times[0]:.1f} to {trace.times[-1]:.1f} s; hollow: start, filled: end",
+        fontsize=10,
+    )
+    return figure
+
+
+def _over_time(
+    trace: Trace,
+    delivery_times: Sequence[float],
+    series: Mapping[str, Mapping[str, Sequence[float]]],
+    title: str,
+    item_name: str,
+) -> Figure:
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(9, 7 if series else 4.5), dpi=_DPI)
+    figure.suptitle(f"{title}: over time")
+    grid = figure.subplots(2 if series else 1, 1, squeeze=False, sharex=True)
+    axes = grid[0, 0]
+    end = float(trace.times[-1]) if len(trace.times) else 0.0
+    delivered = sorted(delivery_times)
+    axes.step([0.0, *delivered, end], [0, *range(1, len(delivered) + 1), len(delivered)],
+              where="post", label=f"{item_name}s delivered")  # fmt: skip
+    axes.set_ylabel(f"{item_name}s delivered")
+    exchanges = trace.exchange_counts
+    if len(exchanges):
+        twin = axes.twinx()
+        twin.step([0.0, *trace.exchange_times.tolist()], [0, *exchanges.tolist()],
+                  where="post", color="C1", label="exchanges")  # fmt: skip
+        twin.set_ylabel("exchanges", color="C1")
+    axes.grid(True, linewidth=0.5, alpha=0.5)
+    axes.legend(loc="upper left", fontsize=8)
+    if series:
+        below = grid[1, 0]
+        for n, (name, values) in enumerate(series.items()):
+            below.plot(values.get("t", []), values.get("value", []), color=f"C{n + 2}", label=name)
+        below.set_xlabel("simulated time (s)")
+        below.grid(True, linewidth=0.5, alpha=0.5)
+        below.legend(loc="upper left", fontsize=8)
+    else:
+        axes.set_xlabel("simulated time (s)")
+    return figure
 
 
 def _group_rows(trace: Trace, groups: dict[str, list[int]]) -> list[tuple[str, list[int]]]:
@@ -153,9 +269,10 @@ def _at_times(times: npt.NDArray[np.float64], wanted: int) -> list[int]:
 
 def _panels(
     title: str,
-    panels: Sequence[tuple[str, npt.NDArray[np.float64]]],
+    panels: Sequence[tuple[str, npt.NDArray[np.float64], npt.NDArray[np.bool_]]],
     rows: list[tuple[str, list[int]]],
     world: tuple[float, float],
+    ids: Sequence[int],
 ) -> Figure:
     from matplotlib.figure import Figure
 
@@ -167,8 +284,9 @@ def _panels(
     # one world in every panel: shared axes label only the outer ones, which also halves
     # the tick labels to lay out
     grid = figure.subplots(2, 3, squeeze=False, sharex=True, sharey=True)
-    for axes, (panel_title, xy) in zip(grid.flat, panels, strict=False):
+    for axes, (panel_title, xy, carrying) in zip(grid.flat, panels, strict=False):
         _scatter(axes, xy, rows, world, size=10)
+        _mark(axes, xy, carrying, ids)
         axes.set_title(panel_title, fontsize=10)
         axes.label_outer()
     for k in range(len(panels), _PANELS):
@@ -208,6 +326,18 @@ def _scatter(
     axes.grid(True, linewidth=0.5, alpha=0.5)
     axes.set_xlabel("x")
     axes.set_ylabel("y")
+
+
+def _mark(
+    axes: Axes, xy: npt.NDArray[np.float64], carrying: npt.NDArray[np.bool_], ids: Sequence[int]
+) -> None:
+    """Circles the robots that carry an item and writes every robot's id beside it."""
+    held = xy[carrying]
+    if len(held):
+        axes.scatter(held[:, 0], held[:, 1], s=45, facecolors="none", edgecolors="black",
+                     linewidths=0.8, label="carrying")  # fmt: skip
+    for robot_id, (x, y) in zip(ids, xy.tolist(), strict=True):
+        axes.annotate(str(robot_id), (x, y), xytext=(2, 2), textcoords="offset points", fontsize=5)
 
 
 def _note(axes: Axes, text: str) -> None:

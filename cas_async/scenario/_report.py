@@ -12,6 +12,10 @@ under its own name (status as its string, robot ids as strings in maps) plus a
       "protocol_errors": <total>
     }
 
+``metrics``, ``series`` and ``by_exchange`` hold the application's measures of the
+robots' positions (one number each, over time, by exchange count), and
+``delivery_times`` the instant of each delivery.
+
 ``faults`` is ``null`` unless the scenario has a ``[faults]`` table; then it holds
 the fault counts (``sent``, ``lost``, ...) and the table gets a ``faults`` line.
 """
@@ -126,6 +130,10 @@ def results_dict(result: RunResult) -> dict[str, Any]:
         "faults": None if result.faults is None else dict(result.faults),
         "groups": {label: list(ids) for label, ids in result.groups.items()},
         "extra": dict(result.extra),
+        "metrics": dict(result.metrics),
+        "delivery_times": list(result.delivery_times),
+        "series": {name: dict(series) for name, series in result.series.items()},
+        "by_exchange": {name: dict(series) for name, series in result.by_exchange.items()},
         "config": result.config,
     }
     return cast(dict[str, Any], _plain(data))
@@ -297,6 +305,10 @@ def summary_table(result: RunResult) -> str:
             "",
         )
     )
+    if result.delivery_times:
+        rows.append((f"{items} delivered by", _delivered_parts(result), ""))
+    for name, measured in result.metrics.items():
+        rows.append((name.replace("_", " "), _measure_parts(result, name, measured), ""))
     distance = statistics(list(result.distance.values()))
     distance_text = _stats_text(distance, ("mean", "max"), _decimal)
     if distance["count"]:
@@ -390,6 +402,37 @@ def _counts_parts(counts: Mapping[str, int], *, total: bool) -> str | list[str]:
 def _faults_parts(faults: Mapping[str, int]) -> list[str]:
     """``1,234 sent``, ``12 lost``, ... in the order the fault injector counts them."""
     return [f"{n:,} {name.replace('_', ' ')}" for name, n in faults.items()]
+
+
+def _quarters(end: float) -> list[float]:
+    return [end * k / 4 for k in range(1, 5)]
+
+
+def _delivered_parts(result: RunResult) -> list[str]:
+    """Items delivered by each quarter of the run: ``7.0 s: 2``, ..., ``27.9 s: 20``."""
+    times = result.delivery_times
+    return [f"{at:,.1f} s: {sum(t <= at for t in times):,}" for at in _quarters(result.sim_time)]
+
+
+def _measure_parts(result: RunResult, name: str, value: float) -> list[str]:
+    """A measure: its last third, its mean per quarter of the run, and by exchange count."""
+    parts = [f"last third {value:.2f}"]
+    series = result.series.get(name, {})
+    times, values = series.get("t", []), series.get("value", [])
+    ends = _quarters(result.sim_time)
+    quarters = []
+    for start, end in zip([0.0, *ends[:-1]], ends, strict=True):
+        inside = [v for t, v in zip(times, values, strict=True) if start <= t <= end]
+        quarters.append(f"{math.fsum(inside) / len(inside):.2f}" if inside else "-")
+    parts.append("by quarter " + " ".join(quarters))
+    by_exchange = result.by_exchange.get(name, {})
+    counts, values = by_exchange.get("count", []), by_exchange.get("value", [])
+    if counts:
+        picks = sorted({round(k * (len(counts) - 1) / 3) for k in range(4)})
+        parts.append(
+            "after exchange " + " ".join(f"{counts[k]:,.0f}: {values[k]:.2f}" for k in picks)
+        )
+    return parts
 
 
 def _extra_text(value: float | int | str) -> str:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from statistics import fmean
 from typing import Any
 
 __all__ = ["RunResult", "RunStatus"]
@@ -54,6 +55,12 @@ class RunResult:
         groups: robot ids by group label (e.g. ``{"Sink": [3, 4]}``), for tables and plots.
         config: the scenario as loaded (after ``--set`` overrides), as plain TOML data.
         extra: application-specific figures, shown in the table and written to JSON.
+        metrics: application-defined measures of the swarm's positions, each
+            summarised as one number (see :class:`~cas_async.scenario.Mission`'s
+            ``measures``): the mean over the last third of the run's samples.
+        series: each of those measures over time: ``{"t": [...], "value": [...]}``;
+            and by exchange count in ``by_exchange``: ``{"count": [...], "value": [...]}``.
+        delivery_times: the simulated instant of each delivery, in order.
     """
 
     scenario: str
@@ -80,3 +87,35 @@ class RunResult:
     groups: dict[str, list[int]] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, float | int | str] = field(default_factory=dict)
+    metrics: dict[str, float] = field(default_factory=dict)
+    series: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    by_exchange: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    delivery_times: list[float] = field(default_factory=list)
+
+    def scalars(self) -> dict[str, float]:
+        """The run's figures as numbers, one per name: what a sweep tabulates.
+
+        ``makespan`` (absent when the target was not reached), ``sim_time``,
+        ``delivered``, ``exchanges``, ``exchanges_per_item`` (mean hand-overs per
+        delivered item), ``travel_time`` (mean), ``distance`` (mean per mobile
+        robot), ``wall_time``, then every entry of ``metrics`` and every numeric
+        entry of ``extra``.
+        """
+        figures: dict[str, float] = {}
+        if self.makespan is not None:
+            figures["makespan"] = self.makespan
+        figures["sim_time"] = self.sim_time
+        figures["delivered"] = float(self.delivered)
+        figures["exchanges"] = float(self.exchanges)
+        if self.handovers_per_item:
+            figures["exchanges_per_item"] = fmean(self.handovers_per_item)
+        if self.travel_times:
+            figures["travel_time"] = fmean(self.travel_times)
+        if self.distance:
+            figures["distance"] = fmean(self.distance.values())
+        figures["wall_time"] = self.wall_time
+        figures.update(self.metrics)
+        for name, value in self.extra.items():
+            if isinstance(value, int | float) and not isinstance(value, bool):
+                figures.setdefault(name, float(value))
+        return figures

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import time
 import traceback
 from collections.abc import Callable
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import Any, TextIO, final
 
 import numpy as np
+import numpy.typing as npt
 
 from .._clock import Clock, ScaledClock, VirtualClock
 from .._errors import ConfigurationError, LayerError
@@ -161,6 +163,7 @@ class ScenarioRun:
         """What the run measured: complete once the robots have stopped."""
         self.trace = Trace(environment.robot_ids)
         """Where the robots were over simulated time."""
+        self._rows = np.array(self.trace.ids, dtype=np.int64)
         self._complete = asyncio.Event()
         environment.items.subscribe(self._on_item)
         if observe is not None:
@@ -177,12 +180,17 @@ class ScenarioRun:
         if event.kind is ItemEventKind.TRANSFERRED:
             if self._scenario.run.trace_exchanges:
                 xy = self.environment.positions_at(event.t).xy
-                self.trace.exchange(event.t, ledger.transfers, xy)
+                self.trace.exchange(event.t, ledger.transfers, xy, self._carrying())
         elif event.kind is ItemEventKind.RETIRED and ledger.retired == self._mission.target:
             self.result.makespan = event.t
             self._complete.set()
         if self._progress is not None:
             self._progress.update(event.t, ledger.retired, ledger.transfers)
+
+    @property
+    def mission(self) -> Mission:
+        """What the application built: its robots, target, groups and measures."""
+        return self._mission
 
     @property
     def swarm(self) -> Swarm:
@@ -263,6 +271,7 @@ class ScenarioRun:
         if failure is not None:
             _failed(result, failure)
         _measure(result, self._mission, self._swarm, self.environment, self._clock.now())
+        _measure_positions(result, self._mission, self.trace)
         self._count_faults()
         if self._trace_csv is not None:
             try:
@@ -302,10 +311,18 @@ class ScenarioRun:
     def _sample(self, t: float) -> None:
         if self._ended:
             return
-        ledger = self.environment.items
-        _sample(t, self.environment, self.trace, self._progress, ledger.retired, ledger.transfers)
+        environment, ledger = self.environment, self.environment.items
+        # Every hand-over already checks the items it touches; this is the full audit.
+        ledger.check()
+        self.trace.sample(t, environment.positions_at(t).xy, self._carrying())
+        if self._progress is not None:
+            self._progress.update(t, ledger.retired, ledger.transfers)
         if self._trace_csv is not None:
             self._trace_csv.write_until(t)  # what came before this sample is final
+
+    def _carrying(self) -> npt.NDArray[np.bool_]:
+        """Which robots of the trace hold an item now, in the trace's row order."""
+        return np.isin(self._rows, self.environment.items.holders())
 
     def _count_faults(self) -> None:
         transport = self._transport
@@ -348,21 +365,6 @@ async def run_scenario(
     async with run:
         await run.until_done()
     return run.result, run.trace
-
-
-def _sample(
-    t: float,
-    environment: Environment,
-    trace: Trace,
-    progress: Progress | None,
-    delivered: int,
-    exchanges: int,
-) -> None:
-    # Every hand-over already checks the items it touches; this is the full audit.
-    environment.items.check()
-    trace.sample(t, environment.positions_at(t).xy)
-    if progress is not None:
-        progress.update(t, delivered, exchanges)
 
 
 async def _until_done(
@@ -433,6 +435,7 @@ def _measure(
     )
     for event in ledger.events:
         if event.kind is ItemEventKind.RETIRED:
+            result.delivery_times.append(event.t)
             history = ledger.history(event.item)
             result.travel_times.append(event.t - history[0].t)
             result.handovers_per_item.append(
@@ -453,3 +456,19 @@ def _measure(
     result.protocol_errors = dict(sorted(errors.items()))
     if mission.extra is not None:
         result.extra = dict(mission.extra())
+
+
+def _measure_positions(result: RunResult, mission: Mission, trace: Trace) -> None:
+    """Evaluates the mission's measures on every sample and snapshot of ``trace``."""
+    ids, times = trace.ids, trace.times
+    since = result.sim_time * 2 / 3  # the last third of the run
+    for name, measure in mission.measures.items():
+        values = [float(measure(ids, xy)) for xy in trace.positions]
+        result.series[name] = {"t": times.tolist(), "value": values}
+        late = [v for t, v in zip(times.tolist(), values, strict=True) if t >= since]
+        if late:
+            result.metrics[name] = math.fsum(late) / len(late)
+        result.by_exchange[name] = {
+            "count": [float(n) for n in trace.exchange_counts.tolist()],
+            "value": [float(measure(ids, xy)) for xy in trace.exchange_positions],
+        }

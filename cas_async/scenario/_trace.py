@@ -5,6 +5,9 @@ A :class:`Trace` holds two streams for the same robots, in the same row order:
 * regular samples, taken every so often by the runner (:meth:`Trace.sample`);
 * exchange snapshots, taken right after an item changed hands (:meth:`Trace.exchange`).
 
+Each record may also say which robots carry an item at that instant (drawn as
+carriers in the figures, the ``carrying`` column of ``trace.csv``).
+
 Recording only appends to Python lists (a run may record tens of thousands of
 samples for a few hundred robots); the numpy views are built when first asked
 for and kept until the next record.
@@ -29,6 +32,7 @@ __all__ = ["Trace", "TraceCsv"]
 
 _FloatArray = npt.NDArray[np.float64]
 _IntArray = npt.NDArray[np.int64]
+_BoolArray = npt.NDArray[np.bool_]
 
 
 class Trace:
@@ -47,10 +51,13 @@ class Trace:
 
     __slots__ = (
         "_cache",
+        "_carrying",
+        "_ex_carrying",
         "_ex_counts",
         "_ex_times",
         "_ex_xy",
         "_ids",
+        "_nobody",
         "_times",
         "_xy",
     )
@@ -62,9 +69,13 @@ class Trace:
             raise SimulationError(f"Trace: robot ids must be unique, got {twice} more than once")
         self._times: list[float] = []
         self._xy: list[_FloatArray] = []
+        self._carrying: list[_BoolArray] = []
         self._ex_counts: list[int] = []
         self._ex_times: list[float] = []
         self._ex_xy: list[_FloatArray] = []
+        self._ex_carrying: list[_BoolArray] = []
+        self._nobody = np.zeros(len(self._ids), dtype=np.bool_)  # shared: never written
+        self._nobody.flags.writeable = False
         # numpy views of the lists above, built on demand; emptied by every record
         self._cache: dict[str, npt.NDArray[Any]] = {}
 
@@ -76,27 +87,35 @@ class Trace:
 
     # -- recording ---------------------------------------------------------------
 
-    def sample(self, t: float, xy: _FloatArray) -> None:
+    def sample(self, t: float, xy: _FloatArray, carrying: _BoolArray | None = None) -> None:
         """Records a regular sample at simulated instant ``t``.
+
+        ``carrying``, shape ``(n,)``, says which robots carry an item (default: none).
 
         Raises:
             SimulationError: ``t`` is not finite or earlier than the previous sample,
-                or ``xy`` is not of shape ``(n, 2)``.
+                ``xy`` is not of shape ``(n, 2)`` or ``carrying`` not of shape ``(n,)``.
         """
         t = self._check_time(t, self._times, "sample")
-        self._xy.append(self._copy(xy, f"sample at t = {t!r}"))
+        what = f"sample at t = {t!r}"
+        copied, flags = self._copy(xy, what), self._flags(carrying, what)
+        self._xy.append(copied)
+        self._carrying.append(flags)
         self._times.append(t)
         self._cache.clear()
 
-    def exchange(self, t: float, count: int, xy: _FloatArray) -> None:
+    def exchange(
+        self, t: float, count: int, xy: _FloatArray, carrying: _BoolArray | None = None
+    ) -> None:
         """Records a snapshot taken right after the ``count``-th exchange (1-based).
 
         Snapshots need not cover every exchange, but their counts must increase.
+        ``carrying`` is as for :meth:`sample`.
 
         Raises:
             SimulationError: ``t`` is not finite or earlier than the previous snapshot,
-                ``count`` is below 1 or not above the previous one, or ``xy`` is not
-                of shape ``(n, 2)``.
+                ``count`` is below 1 or not above the previous one, ``xy`` is not
+                of shape ``(n, 2)`` or ``carrying`` not of shape ``(n,)``.
         """
         t = self._check_time(t, self._ex_times, "exchange snapshot")
         count = int(count)
@@ -106,7 +125,12 @@ class Trace:
                 f"Trace.exchange: count must be at least 1 and above the previous"
                 f" snapshot's ({previous}), got {count}"
             )
-        self._ex_xy.append(self._copy(xy, f"exchange {count}"))
+        copied, flags = (
+            self._copy(xy, f"exchange {count}"),
+            self._flags(carrying, f"exchange {count}"),
+        )
+        self._ex_xy.append(copied)
+        self._ex_carrying.append(flags)
         self._ex_counts.append(count)
         self._ex_times.append(t)
         self._cache.clear()
@@ -132,6 +156,18 @@ class Trace:
         copied.flags.writeable = False
         return copied
 
+    def _flags(self, carrying: _BoolArray | None, what: str) -> _BoolArray:
+        if carrying is None:
+            return self._nobody
+        copied = np.array(carrying, dtype=np.bool_, copy=True)
+        if copied.shape != (len(self._ids),):
+            raise SimulationError(
+                f"Trace: {what} has carrying of shape {copied.shape},"
+                f" expected ({len(self._ids)},) (one flag per robot id)"
+            )
+        copied.flags.writeable = False
+        return copied
+
     # -- reading -----------------------------------------------------------------
 
     @property
@@ -148,6 +184,16 @@ class Trace:
     def positions(self) -> _FloatArray:
         """Regular samples, shape ``(samples, n, 2)``."""
         return self._stack("positions", self._xy)
+
+    @property
+    def carrying(self) -> _BoolArray:
+        """Which robots carried an item at each regular sample, shape ``(samples, n)``."""
+        return self._stack_flags("carrying", self._carrying)
+
+    @property
+    def exchange_carrying(self) -> _BoolArray:
+        """Which robots carried an item at each exchange snapshot, shape ``(snapshots, n)``."""
+        return self._stack_flags("exchange_carrying", self._ex_carrying)
 
     @property
     def exchange_counts(self) -> _IntArray:
@@ -201,12 +247,15 @@ class Trace:
         return cached
 
     def _stack(self, key: str, arrays: list[_FloatArray]) -> _FloatArray:
+        return self._stacked(key, arrays, np.empty((0, len(self._ids), 2), dtype=np.float64))
+
+    def _stack_flags(self, key: str, arrays: list[_BoolArray]) -> _BoolArray:
+        return self._stacked(key, arrays, np.empty((0, len(self._ids)), dtype=np.bool_))
+
+    def _stacked(self, key: str, arrays: list[Any], empty: npt.NDArray[Any]) -> npt.NDArray[Any]:
         cached = self._cache.get(key)
         if cached is None:
-            if arrays:
-                cached = np.stack(arrays)
-            else:
-                cached = np.empty((0, len(self._ids), 2), dtype=np.float64)
+            cached = np.stack(arrays) if arrays else empty
             cached.flags.writeable = False
             self._cache[key] = cached
         return cached
@@ -214,10 +263,11 @@ class Trace:
     # -- output ------------------------------------------------------------------
 
     def write_csv(self, path: Path) -> None:
-        """Writes ``t,robot,x,y,exchange``: one row per robot per sample, in time order.
+        """Writes ``t,robot,x,y,exchange,carrying``: one row per robot per sample, in time order.
 
         ``exchange`` is empty for regular samples and the count for exchange
-        snapshots; at equal times the regular sample comes first. Numbers are
+        snapshots; ``carrying`` is 1 for a robot that carried an item then, else 0.
+        At equal times the regular sample comes first. Numbers are
         written with ``repr``, so they read back exactly. The file is replaced
         atomically: an interrupted write leaves the previous file (or none).
         :class:`TraceCsv` writes the same file as the samples come.
@@ -269,7 +319,7 @@ class TraceCsv:
         self._trace = trace
         self._ids = [f"{robot_id}," for robot_id in trace.ids]
         self._file = AtomicFile(Path(path))
-        self._file.stream.write("t,robot,x,y,exchange\n")
+        self._file.stream.write("t,robot,x,y,exchange,carrying\n")
         self._next = (0, 0)  # the sample and the snapshot to write next
 
     @property
@@ -283,8 +333,13 @@ class TraceCsv:
         for at, exchange, xy, *after in self._trace.in_time_order(*self._next):
             if at >= t:
                 break
-            stream.write(self._rows(at, exchange, xy))
-            self._next = (after[0], after[1])
+            sample, snapshot = after
+            trace = self._trace
+            carrying = (
+                trace._carrying[sample - 1] if exchange == "" else trace._ex_carrying[snapshot - 1]
+            )
+            stream.write(self._rows(at, exchange, xy, carrying))
+            self._next = (sample, snapshot)
         stream.flush()  # the temporary file can be followed as the run goes
 
     def close(self) -> Path:
@@ -296,9 +351,11 @@ class TraceCsv:
         """Drops the file: the path stays as it was. Idempotent."""
         self._file.discard()
 
-    def _rows(self, t: float, exchange: str, xy: _FloatArray) -> str:
-        prefix, suffix = f"{t!r},", f",{exchange}\n"
+    def _rows(self, t: float, exchange: str, xy: _FloatArray, carrying: _BoolArray) -> str:
+        prefix, suffix = f"{t!r},", f",{exchange},"
         return "".join(
-            f"{prefix}{robot_id}{x!r},{y!r}{suffix}"
-            for robot_id, (x, y) in zip(self._ids, xy.tolist(), strict=True)
+            f"{prefix}{robot_id}{x!r},{y!r}{suffix}{int(held)}\n"
+            for robot_id, (x, y), held in zip(
+                self._ids, xy.tolist(), carrying.tolist(), strict=True
+            )
         )

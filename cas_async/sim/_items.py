@@ -144,6 +144,10 @@ class ItemLedger:
         """The items ``robot`` holds now, in the order it received them."""
         return tuple(self._held.get(robot, ()))
 
+    def holders(self) -> tuple[RobotId, ...]:
+        """Every robot that holds at least one item now (in no particular order)."""
+        return tuple(robot for robot, items in self._held.items() if items)
+
     def history(self, item: ItemId) -> tuple[ItemEvent, ...]:
         """Every event of ``item``, oldest first (its first is ``CREATED``).
 

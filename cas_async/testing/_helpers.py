@@ -443,8 +443,8 @@ class LayerHarness:
     so the layer sees exactly what it would in a swarm::
 
         async with LayerHarness(MyStrategy(params), level=1, height=5, peers=[3]) as h:
-            h.answer_below(RequestRobotsInRange, lambda m: RequestRobotsInRange(...))
-            h.from_above(ChangeStatus("MoveBucket", bucket=1))
+            h.answer_below(RequestRobotsInRange, lambda m: RobotsInRange(...))
+            h.from_above(MoveBucket(bucket=1, ...))
             await h.settle()
             assert h.sent_to(3) == [RequestPartner(...)]
 

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import asyncio
 import gc
+from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
 import pytest
 
 import cas_async
@@ -138,3 +141,39 @@ def test_a_start_that_fails_undoes_what_it_did(tmp_path: Path) -> None:
     run = cas_async.run(failing(), virtual=True)
     assert {robot.state for robot in run.swarm} == {RobotState.STOPPED}
     assert gc.get_threshold() == thresholds
+
+
+def test_the_missions_measures_are_evaluated_on_every_sample_and_snapshot() -> None:
+    scenario = load_scenario(SHIPPED, [*VIRTUAL, "run.seed=2", "mission.buckets=4"])
+
+    async def measured() -> tuple[ScenarioRun, list[int]]:
+        run = ScenarioRun(scenario)
+        seen: list[int] = []
+
+        def spread(ids: Sequence[int], xy: npt.NDArray[np.float64]) -> float:
+            seen.append(len(ids))
+            return float(np.ptp(xy[:, 0]))  # how wide the swarm stands
+
+        run.mission.measures = {"spread": spread}
+        async with run:
+            await run.until_done()
+        return run, seen
+
+    run, seen = cas_async.run(measured(), virtual=True)
+    result, trace = run.result, run.trace
+    assert set(seen) == {len(trace.ids)}
+    series, by_exchange = result.series["spread"], result.by_exchange["spread"]
+    assert series["t"] == trace.times.tolist()
+    assert series["value"] == [float(np.ptp(xy[:, 0])) for xy in trace.positions]
+    assert by_exchange["count"] == [float(n) for n in trace.exchange_counts.tolist()]
+    assert len(by_exchange["value"]) == result.exchanges > 0
+    late = [
+        v for t, v in zip(series["t"], series["value"], strict=True) if t >= result.sim_time * 2 / 3
+    ]
+    assert result.metrics == {"spread": pytest.approx(sum(late) / len(late))}
+    assert result.scalars()["spread"] == result.metrics["spread"]
+    # the carriers of each record are the ledger's holders: every exchange has one
+    assert all(trace.exchange_carrying.any(axis=1))
+    assert result.delivery_times == sorted(result.delivery_times)
+    assert len(result.delivery_times) == result.delivered == 4
+    assert result.delivery_times[-1] == result.makespan

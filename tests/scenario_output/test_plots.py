@@ -9,10 +9,16 @@ import pytest
 
 import cas_async
 from cas_async.scenario import Trace, write_plots
-from cas_async.scenario._plots import _at_times, _spread
+from cas_async.scenario._plots import _at_times, _exchange_picks, _spread
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-NAMES = ["initial_positions.png", "snapshots_by_exchange.png", "snapshots_by_time.png"]
+NAMES = [
+    "initial_positions.png",
+    "snapshots_by_exchange.png",
+    "snapshots_by_time.png",
+    "trajectories.png",
+    "over_time.png",
+]
 GROUPS = {"Generator": [1], "Transporter": [2, 3, 4, 5, 6], "Sink": [7]}
 
 
@@ -25,11 +31,12 @@ def walking_trace(samples: int, exchanges: int, duration: float = 80.0) -> Trace
     count = 0
     for t, kind in sorted(events):
         xy = start + np.array([t * 0.2, 0.0])
+        carrying = np.arange(8) == count % 8  # one carrier at a time, in turn
         if kind == "sample":
-            trace.sample(t, xy)
+            trace.sample(t, xy, carrying)
         else:
             count += 1
-            trace.exchange(t, count, xy)
+            trace.exchange(t, count, xy, carrying)
     return trace
 
 
@@ -48,14 +55,68 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     out_dir = tmp_path_factory.mktemp("plots") / "run" / "figures"  # created by write_plots
     # 12 exchanges fill six panels; 4 samples fill only four (the rest is left blank)
     return write_plots(
-        walking_trace(samples=4, exchanges=12), GROUPS, (60.0, 50.0), out_dir, title="Test, seed 1"
+        walking_trace(samples=4, exchanges=12),
+        GROUPS,
+        (60.0, 50.0),
+        out_dir,
+        title="Test, seed 1",
+        snapshot_exchanges=(3, 7, 200),
+        delivery_times=(10.0, 30.0, 31.0),
+        series={"spread": {"t": [0.0, 40.0, 80.0], "value": [0.1, 0.5, 0.4]}},
+        item_name="box",
     )
 
 
-def test_three_pngs_are_written(written: list[Path]) -> None:
+def test_five_pngs_are_written(written: list[Path]) -> None:
     assert [path.name for path in written] == NAMES
     for path in written:
         assert_png(path)
+
+
+@pytest.mark.parametrize(
+    ("counts", "wanted", "expected"),
+    [
+        pytest.param([], (35,), [], id="no-snapshots"),
+        pytest.param([1, 2, 3], (), [0, 1, 2], id="few-all"),
+        pytest.param(
+            list(range(1, 134)),
+            (35, 95, 125, 200),
+            [0, 34, 63, 94, 124, 132],
+            id="thesis-counts-reached-and-the-last",
+        ),  # fmt: skip
+        pytest.param(list(range(1, 30)), (35, 95), [0, 6, 13, 17, 21, 28], id="none-reached"),
+        pytest.param([2, 4, 40, 41], (35,), [0, 1, 2, 3], id="last-before-a-count"),
+    ],
+)
+def test_exchange_panels_show_the_counts_asked_for_where_reached(
+    counts: list[int], wanted: tuple[int, ...], expected: list[int]
+) -> None:
+    assert _exchange_picks(np.array(counts, dtype=np.int64), wanted, 6) == expected
+
+
+def test_carriers_are_circled_and_robots_named(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from matplotlib.axes import Axes
+
+    circled: list[int] = []
+    named: list[str] = []
+    scatter, annotate = Axes.scatter, Axes.annotate
+
+    def spy_scatter(self: Axes, x: object, y: object, *args: object, **kwargs: object) -> object:
+        if kwargs.get("label") == "carrying":
+            circled.append(len(np.atleast_1d(x)))
+        return scatter(self, x, y, *args, **kwargs)  # type: ignore[arg-type]
+
+    def spy_annotate(self: Axes, text: str, *args: object, **kwargs: object) -> object:
+        named.append(text)
+        return annotate(self, text, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Axes, "scatter", spy_scatter)
+    monkeypatch.setattr(Axes, "annotate", spy_annotate)
+    write_plots(walking_trace(samples=6, exchanges=6), GROUPS, (60.0, 50.0), tmp_path, title="t")
+    assert circled == [1] * 12  # six panels by exchange, six by time: one carrier each
+    assert {str(robot) for robot in range(1, 9)} <= set(named)
 
 
 def test_without_records_each_figure_is_a_note(tmp_path: Path) -> None:

@@ -203,6 +203,48 @@ def test_summary_table_of_a_completed_run() -> None:
     ]
 
 
+def test_summary_table_shows_deliveries_over_time_and_the_measures() -> None:
+    result = make_result(
+        sim_time=40.0,
+        delivery_times=[5.0, 10.0, 10.5, 39.0],
+        metrics={"line_share": 0.625},
+        series={
+            "line_share": {"t": [0.0, 10.0, 20.0, 30.0, 40.0], "value": [0.2, 0.4, 0.5, 0.6, 0.65]}
+        },
+        by_exchange={
+            "line_share": {"count": [1.0, 2.0, 3.0, 4.0, 5.0], "value": [0.1, 0.2, 0.3, 0.4, 0.5]}
+        },
+    )
+    lines = summary_table(result).splitlines()
+    at = lines.index("buckets delivered by  10.0 s: 2, 20.0 s: 3, 30.0 s: 3, 40.0 s: 4")
+    assert lines[at + 1 : at + 3] == [
+        "line share            last third 0.62, by quarter 0.30 0.45 0.55 0.62,",
+        "                      after exchange 1: 0.10 2: 0.20 4: 0.40 5: 0.50",
+    ]
+    data = results_dict(result)
+    assert data["metrics"] == {"line_share": 0.625}
+    assert data["series"]["line_share"]["value"][-1] == 0.65
+    assert data["by_exchange"]["line_share"]["count"] == [1.0, 2.0, 3.0, 4.0, 5.0]
+    assert data["delivery_times"] == [5.0, 10.0, 10.5, 39.0]
+
+
+def test_scalars_are_what_a_sweep_tabulates() -> None:
+    result = make_result(metrics={"line_share": 0.5}, extra={"strategy": "time", "refills": 3})
+    assert result.scalars() == {
+        "makespan": 231.44,
+        "sim_time": 231.44,
+        "delivered": 4.0,
+        "exchanges": 11.0,
+        "exchanges_per_item": 3.5,
+        "travel_time": pytest.approx(43.8),
+        "distance": pytest.approx(14.2),
+        "wall_time": 3.21,
+        "line_share": 0.5,
+        "refills": 3.0,
+    }
+    assert "makespan" not in make_result(makespan=None).scalars()
+
+
 def test_summary_table_of_an_unfinished_run_says_so() -> None:
     result = make_result(
         status=RunStatus.TIMED_OUT,

@@ -22,8 +22,8 @@ def trace() -> Trace:
     trace.sample(0.0, xy_of((0.0, 0.0), (10.0, 0.0)))
     trace.sample(1.0, xy_of((1.0, 0.5), (9.0, 0.0)))
     trace.exchange(1.0, 1, xy_of((1.0, 0.5), (9.0, 0.0)))
-    trace.exchange(1.5, 3, xy_of((1.5, 0.75), (8.5, 0.0)))
-    trace.sample(2.0, xy_of((2.0, 1.0), (8.0, 0.1)))
+    trace.exchange(1.5, 3, xy_of((1.5, 0.75), (8.5, 0.0)), np.array([False, True]))
+    trace.sample(2.0, xy_of((2.0, 1.0), (8.0, 0.1)), np.array([True, False]))
     return trace
 
 
@@ -39,8 +39,30 @@ def test_accessors_shape_the_samples(trace: Trace) -> None:
     assert "2 robots, 3 samples, 2 exchange snapshots" in repr(trace)
 
 
+def test_carriers_are_recorded_with_each_record(trace: Trace) -> None:
+    assert trace.carrying.tolist() == [[False, False], [False, False], [True, False]]
+    assert trace.exchange_carrying.tolist() == [[False, False], [False, True]]
+    assert not trace.carrying.flags.writeable
+
+
+def test_carriers_are_copied(trace: Trace) -> None:
+    flags = np.array([True, True])
+    trace.sample(3.0, xy_of((0.0, 0.0), (0.0, 0.0)), flags)
+    flags[0] = False
+    assert trace.carrying[-1].tolist() == [True, True]
+
+
+def test_carriers_of_the_wrong_shape_are_refused(trace: Trace) -> None:
+    with pytest.raises(SimulationError, match=r"carrying of shape \(3,\), expected \(2,\)"):
+        trace.sample(3.0, xy_of((0.0, 0.0), (0.0, 0.0)), np.array([True, False, True]))
+    with pytest.raises(SimulationError, match="exchange 4 has carrying of shape"):
+        trace.exchange(3.0, 4, xy_of((0.0, 0.0), (0.0, 0.0)), np.array([True]))
+
+
 def test_an_empty_trace_has_empty_arrays() -> None:
     trace = Trace([1, 2, 3])
+    assert trace.carrying.shape == (0, 3)
+    assert trace.exchange_carrying.shape == (0, 3)
     assert trace.times.shape == (0,)
     assert trace.positions.shape == (0, 3, 2)
     assert trace.exchange_counts.shape == (0,)
@@ -166,19 +188,19 @@ def test_csv_reads_back_as_the_samples_in_time_order(trace: Trace, tmp_path: Pat
     trace.write_csv(path)
     with path.open(newline="") as stream:
         reader = csv.reader(stream)
-        assert next(reader) == ["t", "robot", "x", "y", "exchange"]
-        rows = [(float(t), int(r), float(x), float(y), e) for t, r, x, y, e in reader]
+        assert next(reader) == ["t", "robot", "x", "y", "exchange", "carrying"]
+        rows = [(float(t), int(r), float(x), float(y), e, c) for t, r, x, y, e, c in reader]
     expected = []
     records = [
-        (0.0, "", trace.positions[0]),
-        (1.0, "", trace.positions[1]),
-        (1.0, "1", trace.exchange_positions[0]),
-        (1.5, "3", trace.exchange_positions[1]),
-        (2.0, "", trace.positions[2]),
+        (0.0, "", trace.positions[0], "00"),
+        (1.0, "", trace.positions[1], "00"),
+        (1.0, "1", trace.exchange_positions[0], "00"),
+        (1.5, "3", trace.exchange_positions[1], "01"),
+        (2.0, "", trace.positions[2], "10"),
     ]
-    for t, exchange, xy in records:
-        for robot_id, (x, y) in zip(trace.ids, xy.tolist(), strict=True):
-            expected.append((t, robot_id, x, y, exchange))
+    for t, exchange, xy, carrying in records:
+        for robot_id, (x, y), held in zip(trace.ids, xy.tolist(), carrying, strict=True):
+            expected.append((t, robot_id, x, y, exchange, held))
     assert rows == expected
     assert sorted(p.name for p in tmp_path.iterdir()) == ["trace.csv"]
 
@@ -218,10 +240,10 @@ def test_csv_written_as_the_trace_grows_is_the_same_file(trace: Trace, tmp_path:
     growing.sample(1.0, trace.positions[1])
     writer.write_until(1.0)  # t = 1 may still get a snapshot: only t = 0 is final
     growing.exchange(1.0, 1, trace.exchange_positions[0])
-    growing.exchange(1.5, 3, trace.exchange_positions[1])
+    growing.exchange(1.5, 3, trace.exchange_positions[1], trace.exchange_carrying[1])
     writer.write_until(1.5)
     assert not path.exists()  # in place only once closed
-    growing.sample(2.0, trace.positions[2])
+    growing.sample(2.0, trace.positions[2], trace.carrying[2])
     assert writer.close() == path
     assert path.read_text() == whole.read_text()
 

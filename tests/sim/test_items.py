@@ -54,6 +54,15 @@ def test_ids_count_up_from_one_and_robots_hold_in_order_received(ledger: ItemLed
     assert ledger.held_by(99) == ()
 
 
+def test_holders_are_the_robots_holding_something_now(ledger: ItemLedger) -> None:
+    assert ledger.holders() == (10,)
+    ledger.create(30, 4.0)
+    assert sorted(ledger.holders()) == [10, 30]
+    ledger.retire(4, 30, 5.0)
+    assert ledger.holders() == (10,)
+    assert ItemLedger().holders() == ()
+
+
 def test_holder_counts_and_repr(ledger: ItemLedger) -> None:
     assert (ledger.holder(1), ledger.holder(2), ledger.holder(3)) == (10, 10, None)
     assert (ledger.created, ledger.retired, ledger.held, ledger.transfers) == (3, 1, 2, 0)
