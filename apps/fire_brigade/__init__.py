@@ -7,7 +7,13 @@ in the scenario: ``[strategy] name = "my_module:MyStrategy"``.
 
 from .app import MESSAGES, FireBrigade
 from .messages import Kind
-from .strategies import RandomStrategy, SoloStrategy, TimeStrategy
+from .strategies import (
+    RandomStrategy,
+    SinkFirstStrategy,
+    SoloStrategy,
+    TimeGainStrategy,
+    TimeStrategy,
+)
 from .strategy import Candidate, SearchView, Strategy
 
 __all__ = [
@@ -17,8 +23,10 @@ __all__ = [
     "Kind",
     "RandomStrategy",
     "SearchView",
+    "SinkFirstStrategy",
     "SoloStrategy",
     "Strategy",
+    "TimeGainStrategy",
     "TimeStrategy",
     "app",
 ]

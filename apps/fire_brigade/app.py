@@ -14,12 +14,16 @@ from .base import Params, Peers, Point
 from .config import FireBrigadeConfig
 from .goal import Goal
 from .group_activity import GroupActivity
+from .lines import LineShare, segments
 from .messages import MESSAGES, Kind
 from .strategies import strategy_class
 from .task import Task
 
 __all__ = ["MESSAGES", "FireBrigade"]
 
+
+THESIS_SNAPSHOTS: Final = (35, 95, 125, 200)
+"""The exchange counts of the thesis's Fig. 34: the figures show the robots there."""
 
 _REACH: Final = 1e-6
 """How close two robots must be for a hand-over (they meet at the same point)."""
@@ -185,6 +189,14 @@ class FireBrigade:
                 )
             )
             groups[kind.name.title()].append(robot_id)
+        generators = stations.placed(stations.generators)
+        sinks = stations.placed(stations.sinks)
+        on_lines = LineShare(groups["Transporter"], segments(generators, sinks), generators + sinks)
         return Mission(
-            robots, config.mission.buckets, groups, extra=lambda: {"strategy": config.strategy.name}
+            robots,
+            config.mission.buckets,
+            groups,
+            extra=lambda: {"strategy": config.strategy.name},
+            measures={"line_share": on_lines},
+            snapshot_exchanges=THESIS_SNAPSHOTS,
         )

@@ -76,7 +76,10 @@ class Transporters:
 class StrategyConfig:
     """Partner selection: the Strategy layer used, and its search parameters."""
 
-    name: str = setting("time", doc="time, random, solo, or 'module:Class' (a Strategy subclass)")
+    name: str = setting(
+        "time",
+        doc="time, time_gain, sink_first, random, solo, or 'module:Class' (a Strategy subclass)",
+    )
     range: float = setting(5.0, gt=0, doc="partners are looked for within this distance")
     search_step: float = setting(
         1.0, gt=0, doc="how far a carrier moves toward its sink before looking again"

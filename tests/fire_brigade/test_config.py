@@ -16,6 +16,7 @@ from apps.fire_brigade.config import FireBrigadeConfig, Stations, StrategyConfig
 from apps.fire_brigade.goal import Goal
 from apps.fire_brigade.group_activity import GroupActivity
 from apps.fire_brigade.messages import Kind
+from apps.fire_brigade.strategies import STRATEGY_NAMES
 from apps.fire_brigade.task import Task
 from cas_async import MemoryTransport, VirtualClock
 from cas_async.scenario import Mission, ScenarioError, SimulationSetup, load_scenario
@@ -49,7 +50,7 @@ def test_shipped_scenarios_pass_the_checks(name: str) -> None:
     scenario = load_scenario(SCENARIOS / name)
     assert isinstance(scenario.app, FireBrigade)
     assert isinstance(scenario.config, FireBrigadeConfig)
-    assert scenario.config.strategy.name in {"time", "random", "solo"}
+    assert scenario.config.strategy.name in STRATEGY_NAMES
 
 
 @pytest.mark.parametrize(
@@ -135,7 +136,8 @@ def test_borderline_values_are_accepted(overrides: list[str]) -> None:
         pytest.param(
             ["strategy.name=fastest"],
             "strategy.name",
-            "expected one of time, random, solo or 'package.module:Class', got 'fastest'",
+            "expected one of time, random, solo, time_gain, sink_first or 'package.module:Class',"
+            " got 'fastest'",
             id="unknown-strategy",
         ),
         pytest.param(
@@ -310,7 +312,9 @@ def test_build_numbers_generators_then_sinks_then_transporters() -> None:
     assert setup.environment.robot_ids == tuple(ids)
     assert mission.target == 20
     assert mission.extra is not None
-    assert mission.extra() == {"strategy": "time"}
+    assert mission.extra() == {"strategy": "time_gain"}
+    assert list(mission.measures) == ["line_share"]
+    assert tuple(mission.snapshot_exchanges) == (35, 95, 125, 200)  # thesis Fig. 34
 
 
 def test_build_places_the_stations_where_the_config_says() -> None:
@@ -423,14 +427,33 @@ def test_build_follows_the_config_not_the_defaults() -> None:
 def test_the_messages_are_the_apps_own() -> None:
     names = {cls.__name__ for cls in MESSAGES}
     assert names == {
-        "ChangeStatus",
+        "Abandoned",
+        "BucketMade",
+        "Carry",
         "CompletionStatus",
+        "Exchanged",
+        "Give",
         "Handover",
+        "HoldOut",
+        "MakeBucket",
         "Meet",
+        "MeetAt",
         "Meeting",
+        "MeetingPoint",
+        "Move",
+        "MoveBucket",
+        "Moved",
+        "PartnerAnswer",
+        "Partnered",
         "RequestInfo",
         "RequestPartner",
         "RequestRobotsInRange",
+        "RobotInfo",
+        "RobotsInRange",
+        "Rotate",
+        "Take",
+        "Where",
+        "Withdraw",
     }
 
 

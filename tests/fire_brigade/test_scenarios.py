@@ -53,7 +53,7 @@ def test_same_seed_same_run() -> None:
     assert first.distance != other.distance
 
 
-@pytest.mark.parametrize("strategy", ["time", "random", "solo"])
+@pytest.mark.parametrize("strategy", ["time", "time_gain", "sink_first", "random", "solo"])
 @pytest.mark.parametrize("seed", range(8))
 def test_bucket_invariant_over_seeds(strategy: str, seed: int) -> None:
     # A smaller mission keeps this table fast; the audit runs after every item event.

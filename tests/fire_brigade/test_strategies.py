@@ -18,7 +18,9 @@ from apps.fire_brigade import (
     Candidate,
     RandomStrategy,
     SearchView,
+    SinkFirstStrategy,
     SoloStrategy,
+    TimeGainStrategy,
     Strategy,
     TimeStrategy,
 )
@@ -100,6 +102,11 @@ def by_time(v: SearchView, candidates: tuple[Candidate, ...]) -> list[int]:
     return [c.robot for c in sorted(candidates, key=lambda c: (score(v, c), c.robot))]
 
 
+def to_sink(v: SearchView) -> float:
+    """The time strategy's score of the sink: the time to drive the bucket there."""
+    return delivery_time(v.here, v.carrying, SINK_AT, None, None, SINK_AT)
+
+
 # -- the view ----------------------------------------------------------------------------
 
 
@@ -124,14 +131,39 @@ def test_the_base_strategy_has_no_choice_of_its_own() -> None:
         Unfinished(params()).choose(view())
 
 
-# -- time --------------------------------------------------------------------------------
+# -- time (§5.2 as written) --------------------------------------------------------------
 
 
-def test_time_asks_only_the_sink_when_it_is_in_range() -> None:
+def test_time_ranks_the_sink_like_any_other_robot_in_range() -> None:
     sink = Candidate(SINK, SINK_AT)
-    # The sink is the farthest candidate, yet handing it the bucket is delivering it.
-    assert TimeStrategy(params()).choose(view((AHEAD, LEFT, sink))) == [SINK]
-    assert TimeStrategy(params()).choose(view((sink,), carrying=TIRED_CARRIER)) == [SINK]
+    v = view((AHEAD, LEFT, BEHIND, sink))
+    chosen = TimeStrategy(params()).choose(v)
+    assert sorted(chosen) == sorted([AHEAD.robot, LEFT.robot, BEHIND.robot, SINK])
+    # A fresh carrier 18 units away: driving there itself (10 s) loses to a partner
+    # ahead (AHEAD, LEFT) and beats one behind.
+    assert to_sink(v) == pytest.approx(10.0)
+    assert score(v, AHEAD) < score(v, LEFT) < to_sink(v) < score(v, BEHIND)
+    assert chosen == [AHEAD.robot, LEFT.robot, SINK, BEHIND.robot]
+
+
+def test_time_asks_the_sink_first_when_it_is_the_soonest() -> None:
+    near_sink: Point = (5.0, 17.0)
+    sink = Candidate(SINK, SINK_AT)
+    v = view((Candidate(12, (5.0, 14.0)), sink), here=near_sink)
+    assert TimeStrategy(params()).choose(v) == [SINK, 12]
+
+
+def test_time_asks_partners_slower_than_carrying_it_itself_last() -> None:
+    v = view()  # a fresh carrier: 10 s alone, yet everyone in range is asked
+    chosen = TimeStrategy(params()).choose(v)
+    assert chosen == by_time(v, AROUND)
+    assert sorted(chosen) == sorted(c.robot for c in AROUND)
+    alone = solo_time(HERE, FRESH_CARRIER, SINK_AT)
+    assert score(v, BEHIND) > alone  # carrying it would be sooner: asked all the same
+
+
+def test_time_with_nobody_in_range_asks_nobody() -> None:
+    assert TimeStrategy(params()).choose(view(())) == []
 
 
 def test_time_ranks_partners_by_delivery_time() -> None:
@@ -155,11 +187,48 @@ def test_time_ignores_the_order_candidates_come_in() -> None:
     assert len(orders) == 1
 
 
+# -- time gain ---------------------------------------------------------------------------
+
+
+def test_time_gain_ranks_the_sink_but_skips_partners_slower_than_carrying() -> None:
+    sink = Candidate(SINK, SINK_AT)
+    v = view((AHEAD, LEFT, BEHIND, ASIDE, sink))
+    # BEHIND and ASIDE lose to carrying it (10 s); the sink costs exactly that.
+    assert TimeGainStrategy(params()).choose(v) == [AHEAD.robot, LEFT.robot, SINK]
+
+
+def test_time_gain_near_the_sink_asks_the_sink_first() -> None:
+    sink = Candidate(SINK, SINK_AT)
+    v = view((Candidate(12, (5.0, 14.0)), sink), here=(5.0, 17.0))
+    assert TimeGainStrategy(params()).choose(v) == [SINK]
+
+
+def test_time_gain_for_a_generator_is_the_time_rule() -> None:
+    v = view(kind=Kind.GENERATOR)
+    p = params(Kind.GENERATOR)
+    assert TimeGainStrategy(p).choose(v) == TimeStrategy(p).choose(v)
+
+
+# -- sink first (this demo's earlier rule) -------------------------------------------------
+
+
+def test_sink_first_asks_only_the_sink_when_it_is_in_range() -> None:
+    sink = Candidate(SINK, SINK_AT)
+    # The sink is the farthest candidate, yet handing it the bucket is delivering it.
+    assert SinkFirstStrategy(params()).choose(view((AHEAD, LEFT, sink))) == [SINK]
+    assert SinkFirstStrategy(params()).choose(view((sink,), carrying=TIRED_CARRIER)) == [SINK]
+
+
+def test_sink_first_ranks_by_time_like_the_time_strategy() -> None:
+    v = view(carrying=TIRED_CARRIER)  # everyone beats 18 s alone
+    assert SinkFirstStrategy(params()).choose(v) == TimeStrategy(params()).choose(v)
+
+
 def test_a_transporter_skips_partners_slower_than_carrying_it_itself() -> None:
     v = view()  # a fresh carrier: 10 s alone
     alone = solo_time(HERE, FRESH_CARRIER, SINK_AT)
     assert alone == pytest.approx(10.0)
-    chosen = TimeStrategy(params()).choose(v)
+    chosen = SinkFirstStrategy(params()).choose(v)
     assert chosen == [AHEAD.robot, LEFT.robot, RIGHT.robot]
     assert all(score(v, c) < alone for c in (AHEAD, LEFT, RIGHT))
     # Behind, level, or right here (a fresh partner with the same fatigue ahead of it
@@ -169,21 +238,24 @@ def test_a_transporter_skips_partners_slower_than_carrying_it_itself() -> None:
 
 
 def test_a_transporter_with_nobody_faster_asks_nobody() -> None:
-    assert TimeStrategy(params()).choose(view((BEHIND, ASIDE, SAME_SPOT))) == []
-    assert TimeStrategy(params()).choose(view(())) == []
+    assert SinkFirstStrategy(params()).choose(view((BEHIND, ASIDE, SAME_SPOT))) == []
+    assert SinkFirstStrategy(params()).choose(view(())) == []
 
 
 def test_fatigue_makes_more_partners_worth_asking() -> None:
-    strategy = TimeStrategy(params())
+    strategy = SinkFirstStrategy(params())
     fresh = strategy.choose(view())
     tired = strategy.choose(view(carrying=TIRED_CARRIER))
     assert set(fresh) < set(tired)
 
 
-def test_a_generator_cannot_carry_so_it_ranks_everyone_in_range() -> None:
+@pytest.mark.parametrize("strategy", [TimeStrategy, SinkFirstStrategy])
+def test_a_generator_cannot_carry_so_it_ranks_everyone_in_range(
+    strategy: type[Strategy],
+) -> None:
     v = view(kind=Kind.GENERATOR)
     assert v.carrying is None
-    chosen = TimeStrategy(params(Kind.GENERATOR)).choose(v)
+    chosen = strategy(params(Kind.GENERATOR)).choose(v)
     assert sorted(chosen) == sorted(c.robot for c in AROUND)
     assert chosen == by_time(v, AROUND)
     # The partner meets it where it stands, so the nearest partner is the best.
@@ -217,7 +289,7 @@ def test_random_does_not_rank_by_time() -> None:
     timed = TimeStrategy(params()).choose(view(carrying=TIRED_CARRIER))
     draws = [strategy.choose(view(carrying=TIRED_CARRIER)) for _ in range(20)]
     assert any(draw != timed for draw in draws)
-    # ... and, unlike the time strategy, it also asks partners slower than carrying.
+    # ... and, unlike the sink-first rule, it also asks partners slower than carrying.
     assert all(BEHIND.robot in draw for draw in draws)
 
 
@@ -270,6 +342,8 @@ class Nearest(Strategy):
         pytest.param("time", TimeStrategy, id="time"),
         pytest.param("random", RandomStrategy, id="random"),
         pytest.param("solo", SoloStrategy, id="solo"),
+        pytest.param("sink_first", SinkFirstStrategy, id="sink_first"),
+        pytest.param("time_gain", TimeGainStrategy, id="time_gain"),
         pytest.param("apps.fire_brigade:SoloStrategy", SoloStrategy, id="built-in-by-path"),
         pytest.param("tests.fire_brigade.test_strategies:Nearest", Nearest, id="user-class"),
     ],
@@ -279,7 +353,7 @@ def test_strategy_class_resolves_names(name: str, cls: type[Strategy]) -> None:
 
 
 def test_the_built_in_names() -> None:
-    assert STRATEGY_NAMES == ("time", "random", "solo")
+    assert STRATEGY_NAMES == ("time", "random", "solo", "time_gain", "sink_first")
 
 
 def test_a_user_strategy_chooses_through_the_same_view() -> None:
@@ -291,7 +365,9 @@ def test_a_user_strategy_chooses_through_the_same_view() -> None:
 @pytest.mark.parametrize(
     ("name", "message"),
     [
-        pytest.param("Time", "expected one of time, random, solo", id="case-matters"),
+        pytest.param(
+            "Time", "expected one of time, random, solo, time_gain, sink_first", id="case-matters"
+        ),
         pytest.param("tests.fire_brigade.test_strategies", "'package.module:Class'", id="no-class"),
         pytest.param(":Nearest", "'package.module:Class'", id="no-module"),
         pytest.param("no_such_module:X", "cannot import 'no_such_module'", id="no-module-found"),

@@ -1,0 +1,106 @@
+"""Whether the Transporters stand in lines: the thesis's §5.8 result, as one number.
+
+The thesis expects the Transporters to converge on the paths from the Generators to
+the Sinks and pass buckets along them "with minimal movement" (§5.8.1, Figs. 34-36).
+:class:`LineShare` measures that: the share of Transporters that stand *on a line*,
+within ``near`` of a Generator-Sink segment and farther than ``away`` from every
+station. The second condition matters: a crowd parked on the Sinks (or waiting at
+the Generators) is close to the segments too, but it is not a line.
+
+Each Generator's segment goes to its nearest Sink, the one its buckets go to (see
+the Goal layer). The scenario runner evaluates the measure on every sample of the
+robots' positions and on every exchange snapshot (``Mission.measures``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Final
+
+import numpy as np
+import numpy.typing as npt
+
+from .base import Point
+
+__all__ = ["LineShare", "segments"]
+
+_FloatArray = npt.NDArray[np.float64]
+
+NEAR: Final = 0.5
+"""How close to a segment a Transporter stands on the line."""
+AWAY: Final = 1.0
+"""How far from every station it must be: a robot parked on a Sink is not in a line."""
+
+
+def segments(generators: Sequence[Point], sinks: Sequence[Point]) -> list[tuple[Point, Point]]:
+    """Each Generator with its nearest Sink (ties to the first listed), as segments."""
+    if not sinks:
+        return []
+    return [(g, min(sinks, key=lambda s: math.dist(g, s))) for g in generators]
+
+
+class LineShare:
+    """The share of Transporters on a Generator-Sink line (see the module docs).
+
+    Called with the robots' ids and positions (one row per id), it returns a number
+    between 0 and 1 (0 when there is no Transporter among the ids).
+
+    Args:
+        transporters: the Transporters' ids; other robots are ignored.
+        lines: the segments, from :func:`segments`.
+        stations: every Generator's and Sink's position.
+        near: the distance to a segment within which a Transporter is on it.
+        away: the distance from every station beyond which it counts.
+    """
+
+    def __init__(
+        self,
+        transporters: Sequence[int],
+        lines: Sequence[tuple[Point, Point]],
+        stations: Sequence[Point],
+        *,
+        near: float = NEAR,
+        away: float = AWAY,
+    ) -> None:
+        self._transporters = frozenset(transporters)
+        self._starts = np.array([a for a, _ in lines], dtype=np.float64).reshape(-1, 2)
+        self._ends = np.array([b for _, b in lines], dtype=np.float64).reshape(-1, 2)
+        self._stations = np.array(stations, dtype=np.float64).reshape(-1, 2)
+        self._near, self._away = near, away
+        self._rows: tuple[tuple[int, ...], npt.NDArray[np.intp]] | None = None
+
+    def __call__(self, ids: Sequence[int], xy: _FloatArray) -> float:
+        """The share among the Transporters of ``ids`` at positions ``xy``."""
+        rows = self._transporter_rows(ids)
+        if not len(rows) or not len(self._starts):
+            return 0.0
+        points = np.asarray(xy, dtype=np.float64)[rows]
+        on_line = _distance_to_segments(points, self._starts, self._ends) <= self._near
+        if len(self._stations):
+            gaps = np.linalg.norm(points[:, None, :] - self._stations[None, :, :], axis=2)
+            on_line &= gaps.min(axis=1) > self._away
+        return float(np.count_nonzero(on_line)) / len(rows)
+
+    def _transporter_rows(self, ids: Sequence[int]) -> npt.NDArray[np.intp]:
+        key = tuple(ids)
+        if self._rows is None or self._rows[0] != key:
+            rows = [k for k, robot in enumerate(key) if robot in self._transporters]
+            self._rows = (key, np.array(rows, dtype=np.intp))
+        return self._rows[1]
+
+
+def _distance_to_segments(
+    points: _FloatArray, starts: _FloatArray, ends: _FloatArray
+) -> _FloatArray:
+    """For each point, the distance to the nearest of the segments ``starts[k]-ends[k]``."""
+    span = ends - starts  # (m, 2)
+    length2 = np.einsum("ij,ij->i", span, span)  # (m,)
+    offset = points[:, None, :] - starts[None, :, :]  # (n, m, 2)
+    along = np.einsum("nmj,mj->nm", offset, span)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fraction = np.where(length2 > 0, along / length2, 0.0)
+    fraction = np.clip(fraction, 0.0, 1.0)
+    nearest = starts[None, :, :] + fraction[:, :, None] * span[None, :, :]
+    distance: _FloatArray = np.linalg.norm(points[:, None, :] - nearest, axis=2).min(axis=1)
+    return distance
