@@ -210,8 +210,8 @@ def _over_time(
     figure.suptitle(f"{title}: over time")
     grid = figure.subplots(2 if series else 1, 1, squeeze=False, sharex=True)
     axes = grid[0, 0]
-    end = float(trace.times[-1]) if len(trace.times) else 0.0
     delivered = sorted(delivery_times)
+    end = max([*trace.times.tolist(), *trace.exchange_times.tolist(), *delivered], default=0.0)
     axes.step([0.0, *delivered, end], [0, *range(1, len(delivered) + 1), len(delivered)],
               where="post", label=f"{item_name}s delivered")  # fmt: skip
     axes.set_ylabel(f"{item_name}s delivered")
