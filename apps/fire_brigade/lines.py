@@ -73,13 +73,24 @@ class LineShare:
     def __call__(self, ids: Sequence[int], xy: _FloatArray) -> float:
         """The share among the Transporters of ``ids`` at positions ``xy``."""
         rows = self._transporter_rows(ids)
-        if not len(rows) or not len(self._starts):
+        if not len(rows):
             return 0.0
         points = np.asarray(xy, dtype=np.float64)[rows]
-        on_line = _distance_to_segments(points, self._starts, self._ends) <= self._near
-        if len(self._stations):
-            gaps = np.linalg.norm(points[:, None, :] - self._stations[None, :, :], axis=2)
-            on_line &= gaps.min(axis=1) > self._away
+        # Each segment and station looks only at the robots in its band of x (sorted
+        # once): a swarm of thousands against hundreds of segments stays cheap.
+        order = np.argsort(points[:, 0], kind="stable")
+        xs = points[order, 0]
+        on_line = np.zeros(len(points), dtype=np.bool_)
+        for start, end in zip(self._starts, self._ends, strict=True):
+            low, high = min(start[0], end[0]) - self._near, max(start[0], end[0]) + self._near
+            band = order[np.searchsorted(xs, low) : np.searchsorted(xs, high, side="right")]
+            near = _distance_to_segment(points[band], start, end) <= self._near
+            on_line[band[near]] = True
+        for station in self._stations:
+            low, high = station[0] - self._away, station[0] + self._away
+            band = order[np.searchsorted(xs, low) : np.searchsorted(xs, high, side="right")]
+            close = np.hypot(*(points[band] - station).T) <= self._away
+            on_line[band[close]] = False
         return float(np.count_nonzero(on_line)) / len(rows)
 
     def _transporter_rows(self, ids: Sequence[int]) -> npt.NDArray[np.intp]:
@@ -90,17 +101,12 @@ class LineShare:
         return self._rows[1]
 
 
-def _distance_to_segments(
-    points: _FloatArray, starts: _FloatArray, ends: _FloatArray
-) -> _FloatArray:
-    """For each point, the distance to the nearest of the segments ``starts[k]-ends[k]``."""
-    span = ends - starts  # (m, 2)
-    length2 = np.einsum("ij,ij->i", span, span)  # (m,)
-    offset = points[:, None, :] - starts[None, :, :]  # (n, m, 2)
-    along = np.einsum("nmj,mj->nm", offset, span)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        fraction = np.where(length2 > 0, along / length2, 0.0)
-    fraction = np.clip(fraction, 0.0, 1.0)
-    nearest = starts[None, :, :] + fraction[:, :, None] * span[None, :, :]
-    distance: _FloatArray = np.linalg.norm(points[:, None, :] - nearest, axis=2).min(axis=1)
+def _distance_to_segment(points: _FloatArray, start: _FloatArray, end: _FloatArray) -> _FloatArray:
+    """For each point, its distance to the segment from ``start`` to ``end``."""
+    span = end - start
+    length2 = float(span @ span)
+    offset = points - start
+    fraction = np.clip(offset @ span / length2, 0.0, 1.0) if length2 > 0 else 0.0
+    nearest = start + np.multiply.outer(fraction, span)
+    distance: _FloatArray = np.hypot(*(points - nearest).T)
     return distance

@@ -1,12 +1,15 @@
-"""The line measure: who stands on a Generator-Sink line, and whether the shipped runs form lines."""
+"""The line measure: who stands on a Generator-Sink line; do the shipped runs form lines."""
 
 from __future__ import annotations
 
+import math
 import statistics
 
 import numpy as np
 import pytest
 
+from apps.fire_brigade.base import Point
+from apps.fire_brigade.config import Stations
 from apps.fire_brigade.lines import LineShare, segments
 from cas_async.scenario import RunStatus
 from tests.fire_brigade.helpers import SCENARIOS, run_checked
@@ -74,3 +77,32 @@ def test_the_shipped_scenario_forms_lines_that_solo_carriers_do_not() -> None:
     # give 0.73 and 0.12 (see the README); three seeds keep this test short.
     assert statistics.fmean(last_third_shares("time_gain")) > 0.5
     assert statistics.fmean(last_third_shares("solo")) < 0.3
+
+
+def brute_force(
+    points: np.ndarray, lines: list[tuple[Point, Point]], stations: list[Point]
+) -> float:
+    on = 0
+    for p in points.tolist():
+        near = False
+        for (ax, ay), (bx, by) in lines:
+            dx, dy = bx - ax, by - ay
+            f = max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / (dx * dx + dy * dy)))
+            near |= math.hypot(p[0] - ax - f * dx, p[1] - ay - f * dy) <= 0.5
+        away = all(math.hypot(p[0] - sx, p[1] - sy) > 1.0 for sx, sy in stations)
+        on += near and away
+    return on / len(points)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_many_cells_give_what_every_pair_gives(seed: int) -> None:
+    # Each segment and station looks only at the robots in its band of x: the same
+    # share as measuring every robot against every segment and station.
+    stations = Stations(repeat=12)
+    generators, sinks = stations.placed(stations.generators), stations.placed(stations.sinks)
+    rng = np.random.default_rng(seed)
+    points = np.column_stack([rng.uniform(0, 120, 600), rng.uniform(0, 10, 600)])
+    points[:40, 0] = np.repeat([4.0, 8.0, 14.0, 18.5], 10)  # some exactly on a line
+    lines = segments(generators, sinks)
+    measure = LineShare(range(600), lines, [*generators, *sinks])
+    assert measure(list(range(600)), points) == brute_force(points, lines, [*generators, *sinks])
