@@ -438,7 +438,19 @@ class UdpTransport(Transport):
                 sock.close()
                 raise
             return SocketWire(loop, sock, receiver)
-        transport, _ = await loop.create_datagram_endpoint(lambda: receiver, local_addr=bind)
+        # Shielded: cancelled half-way, uvloop leaves the endpoint it made open, and its
+        # loop then hangs in close(). Binding on loopback takes microseconds: let it
+        # finish, close what it made, and be cancelled after.
+        creating = asyncio.ensure_future(
+            loop.create_datagram_endpoint(lambda: receiver, local_addr=bind)
+        )
+        try:
+            transport, _ = await asyncio.shield(creating)
+        except asyncio.CancelledError:
+            with contextlib.suppress(Exception, asyncio.CancelledError):
+                made, _ = await creating
+                made.close()
+            raise
         return transport
 
     def __repr__(self) -> str:
