@@ -17,6 +17,7 @@ import contextlib
 import math
 import time
 import traceback
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO, final
@@ -165,6 +166,7 @@ class ScenarioRun:
         """Where the robots were over simulated time."""
         self._rows = np.array(self.trace.ids, dtype=np.int64)
         self._complete = asyncio.Event()
+        self._events_measured: int | None = None  # item events up to the target, once reached
         environment.items.subscribe(self._on_item)
         if observe is not None:
             observe(environment)
@@ -174,7 +176,7 @@ class ScenarioRun:
         self._gc = contextlib.ExitStack()
 
     def _on_item(self, event: ItemEvent) -> None:
-        if self._ended:  # measured: what the robots still do until they stop is not
+        if self._ended or self._events_measured is not None:  # what comes after is not the run's
             return
         ledger = self.environment.items
         if event.kind is ItemEventKind.TRANSFERRED:
@@ -183,6 +185,9 @@ class ScenarioRun:
                 self.trace.exchange(event.t, ledger.transfers, xy, self._carrying())
         elif event.kind is ItemEventKind.RETIRED and ledger.retired == self._mission.target:
             self.result.makespan = event.t
+            # The run ends here: an item retired before the loop gets round to ending
+            # it (on scaled time, a moment later) is not the run's.
+            self._events_measured = len(ledger.events)
             self._complete.set()
         if self._progress is not None:
             self._progress.update(event.t, ledger.retired, ledger.transfers)
@@ -270,7 +275,14 @@ class ScenarioRun:
         result.status = status
         if failure is not None:
             _failed(result, failure)
-        _measure(result, self._mission, self._swarm, self.environment, self._clock.now())
+        _measure(
+            result,
+            self._mission,
+            self._swarm,
+            self.environment,
+            self._clock.now(),
+            self._events_measured,
+        )
         _measure_positions(result, self._mission, self.trace)
         self._count_faults()
         if self._trace_csv is not None:
@@ -424,16 +436,22 @@ def _failed(result: RunResult, error: BaseException) -> None:
 
 
 def _measure(
-    result: RunResult, mission: Mission, swarm: Swarm, environment: Environment, now: float
+    result: RunResult,
+    mission: Mission,
+    swarm: Swarm,
+    environment: Environment,
+    now: float,
+    events: int | None,
 ) -> None:
+    """Measures the run as it ended; only the first ``events`` item events when given."""
     ledger = environment.items
     result.sim_time = now
-    result.created, result.delivered, result.exchanges = (
-        ledger.created,
-        ledger.retired,
-        ledger.transfers,
-    )
-    for event in ledger.events:
+    counted = ledger.events if events is None else ledger.events[:events]
+    kinds = Counter(event.kind for event in counted)
+    result.created = kinds[ItemEventKind.CREATED]
+    result.delivered = kinds[ItemEventKind.RETIRED]
+    result.exchanges = kinds[ItemEventKind.TRANSFERRED]
+    for event in counted:
         if event.kind is ItemEventKind.RETIRED:
             result.delivery_times.append(event.t)
             history = ledger.history(event.item)

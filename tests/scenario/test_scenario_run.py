@@ -14,6 +14,7 @@ import pytest
 import cas_async
 from cas_async import RobotState
 from cas_async.scenario import RunStatus, ScenarioRun, load_scenario, run_scenario
+from cas_async.sim import Environment, ItemEvent, ItemEventKind
 from tests.fire_brigade.helpers import SCENARIOS, VIRTUAL
 
 SHIPPED = SCENARIOS / "thesis_5_8_1.toml"
@@ -177,3 +178,27 @@ def test_the_missions_measures_are_evaluated_on_every_sample_and_snapshot() -> N
     assert result.delivery_times == sorted(result.delivery_times)
     assert len(result.delivery_times) == result.delivered == 4
     assert result.delivery_times[-1] == result.makespan
+
+
+def test_items_retired_after_the_target_are_not_the_runs() -> None:
+    # On scaled time another delivery may come before the loop gets round to ending the
+    # run: it is not counted. Here one comes in the very callback of the last delivery.
+    scenario = load_scenario(SHIPPED, [*VIRTUAL, "run.seed=3", "mission.buckets=3"])
+    late: list[int] = []
+
+    def observe(environment: Environment) -> None:
+        ledger = environment.items
+
+        def one_more(event: ItemEvent) -> None:
+            if event.kind is ItemEventKind.RETIRED and ledger.retired == 3 and not late:
+                late.append(ledger.create(event.robot, event.t))
+                ledger.retire(late[0], event.robot, event.t)
+
+        ledger.subscribe(one_more)
+
+    result, trace = cas_async.run(run_scenario(scenario, observe=observe), virtual=True)
+    assert late
+    assert result.delivered == 3
+    assert len(result.delivery_times) == len(result.travel_times) == 3
+    assert late[0] > result.created  # the item made after the end is not counted either
+    assert result.exchanges == trace.exchange_counts[-1]
