@@ -5,16 +5,26 @@ wrong, before anything starts), runs it with a live progress line, prints the
 summary table, and writes ``results.json``, ``trace.csv`` and the PNG figures to
 the output directory.
 
-SIGINT and SIGTERM stop the command within a second at any moment. While the
+``sweep SCENARIO.toml --seeds N [--vary KEY=A,B,...]...`` runs it for seeds 1..N
+at every point of the grid of the ``--vary`` values, in worker processes, on
+virtual time unless ``--set run.virtual=false`` (allowed; each run then takes wall
+time). Every point is checked first (exit code 2 naming the file, key and point).
+It prints a line per run, writes ``runs.csv``, ``table.md``, ``summary.json`` and
+``box_<metric>.png``, and prints the table (see :mod:`cas_async.scenario._sweep`).
+
+SIGINT and SIGTERM stop ``run`` within a second at any moment. While the
 scenario loads, nothing is written; while the robots are built, ``results.json``
 says the run was interrupted before anything ran. Once the robots run,
 what was measured is written first (``results.json``; ``trace.csv`` is written as
 the run goes, so little is left); as ``python -m cas_async`` the process then
 exits at once, leaving the robots and their sockets to the OS, without the figures.
-A file is always written whole or not at all.
+They stop ``sweep`` within a fraction of a second: the runs not finished are
+abandoned, the workers killed; what finished is written (the files, not the
+box plots) and its table printed. A file is always written whole or not at all.
 
-Exit codes: 0 the mission completed; 1 it failed or ran out of simulated time;
-2 the command line or the scenario is wrong; 130 interrupted.
+Exit codes: 0 the mission completed (``sweep``: every run did); 1 it failed or ran
+out of simulated time (``sweep``: some run did); 2 the command line or the
+scenario is wrong; 130 interrupted.
 """
 
 from __future__ import annotations
@@ -42,9 +52,13 @@ from .scenario import (
     ScenarioRun,
     check_key,
     load_scenario,
+    plan_sweep,
+    run_sweep,
+    sweep_table,
 )
 from .scenario._report import remove_partial_files, summary_table, write_results
-from .scenario._trace import Trace
+from .scenario._sweep_plots import write_box_plots
+from .scenario._sweep_report import write_sweep_files
 
 __all__ = ["main"]
 
@@ -110,7 +124,37 @@ def _parser() -> argparse.ArgumentParser:
         dest="overrides",
         help="override a scenario key, e.g. strategy.name=solo",
     )
+    sweeper = commands.add_parser(
+        "sweep",
+        help="run a scenario over a grid of values and seeds",
+        description="Run a scenario for seeds 1..N at every point of a grid (the cartesian "
+        "product of the --vary values) in parallel worker processes, on virtual time; write "
+        "runs.csv, table.md, summary.json and box plots, and print the table.",
+    )
+    sweeper.add_argument("scenario", type=Path, help="the scenario file (TOML)")
+    add = sweeper.add_argument
+    add("--seeds", type=_at_least_one, required=True, metavar="N", help="seeds 1..N per point")
+    add("--vary", action="append", default=[], metavar="KEY=A,B,...",
+        help="vary a key over these values (TOML, or bare text), e.g. strategy.name=time,solo; "
+        "several --vary make a grid")  # fmt: skip
+    add("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
+        help='override a key in every run, after run.virtual=true and run.transport="memory" '
+        "(run.virtual=false: scaled real time, slow)")  # fmt: skip
+    add("--out", type=Path, metavar="DIR", help="where to write (default: runs/sweep-<scenario>)")
+    add("--jobs", type=_at_least_one, metavar="J",
+        help=f"worker processes (default: the CPUs, {os.cpu_count()} here)")  # fmt: skip
+    add("--no-plots", action="store_true", help="skip the box plots")
     return parser
+
+
+def _at_least_one(text: str) -> int:
+    try:
+        number = int(text)
+    except ValueError:
+        number = 0
+    if number < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return number
 
 
 def _overrides(args: argparse.Namespace) -> list[str]:
@@ -129,16 +173,21 @@ def _overrides(args: argparse.Namespace) -> list[str]:
     return overrides
 
 
-def _write_figures(result: RunResult, trace: Trace, scenario: Scenario, out: Path) -> list[Path]:
+def _write_figures(scenario_run: ScenarioRun, scenario: Scenario, out: Path) -> list[Path]:
     from .scenario._plots import write_plots  # matplotlib is imported only here
 
+    result = scenario_run.result
     return write_plots(
-        trace,
+        scenario_run.trace,
         result.groups,
         (scenario.world.width, scenario.world.height),
         out,
         title=f"{result.app}, {scenario.path.name}, seed {result.seed}",
         exchanges_traced=scenario.run.trace_exchanges,
+        snapshot_exchanges=scenario_run.mission.snapshot_exchanges,
+        delivery_times=result.delivery_times,
+        series=result.series,
+        item_name=result.item_name,
     )
 
 
@@ -196,6 +245,51 @@ def _command_run(
         with interrupts.calling(session.request_stop):
             run(session.drive(stop), virtual=scenario.run.virtual)
         return session.finish()
+
+
+def _command_sweep(
+    args: argparse.Namespace,
+    stdout: TextIO,
+    stderr: TextIO,
+    interrupts: Interrupts,
+    owns_process: bool,
+) -> int:
+    try:  # a signal meanwhile abandons it, as any other work done before the runs
+        plan = plan_sweep(args.scenario, seeds=args.seeds, vary=args.vary, overrides=args.overrides)
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
+    out: Path = args.out or Path("runs") / f"sweep-{plan.path.stem}"
+    try:  # before the runs: a long sweep must not end in "cannot write"
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
+        return EXIT_USAGE
+    if plan.real_time:
+        print("note: run.virtual=false: each run takes wall time (see time_factor)", file=stderr)
+    with interrupts.deferred():  # a signal is noted, and the sweep looks ten times a second
+        outcome = run_sweep(
+            plan, jobs=args.jobs, progress_to=stderr, stop=lambda: interrupts.interrupted
+        )
+        written = write_sweep_files(outcome, out)
+        print(sweep_table(outcome), end="", file=stdout)
+
+    def say_written() -> None:
+        print(f"wrote {', '.join(path.name for path in written)} to {out}/", file=stdout)
+
+    if not args.no_plots and not interrupts.interrupted:
+        # A signal abandons them; each file is written whole or not at all.
+        with (
+            _leaving_at_once(interrupts, owns_process, (stdout, stderr), say_written),
+            contextlib.suppress(Interrupted),
+        ):
+            written += write_box_plots(outcome, out)
+    say_written()
+    if interrupts.interrupted:
+        left_out = "the runs not finished and the box plots" if outcome.interrupted else "box plots"
+        print(f"interrupted: {left_out} left out", file=stderr)
+        return EXIT_INTERRUPTED
+    return EXIT_OK if outcome.all_completed else EXIT_FAILED
 
 
 @final
@@ -290,7 +384,7 @@ class _Session:
         if self._plots and not interrupts.interrupted:
             # A signal abandons them; each file is written whole or not at all.
             with contextlib.suppress(Interrupted):
-                self._written += _write_figures(result, self._run.trace, self._scenario, self._out)
+                self._written += _write_figures(self._run, self._scenario, self._out)
         self._say_written()
         return EXIT_INTERRUPTED if interrupts.interrupted else _STATUS_EXIT[result.status]
 
@@ -391,6 +485,8 @@ def main(
             args = _parser().parse_args(argv)
             if args.command == "run":
                 return _command_run(args, stdout, stderr, interrupts, owns_process)
+            if args.command == "sweep":
+                return _command_sweep(args, stdout, stderr, interrupts, owns_process)
         raise AssertionError(f"unhandled command {args.command!r}")  # argparse requires one
     except Interrupted:
         return EXIT_INTERRUPTED

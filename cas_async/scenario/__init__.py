@@ -9,9 +9,12 @@
   :mod:`.results`: what it measured.
 * :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
   the summary table and results.json, PNG figures, the live progress line.
+* :mod:`.sweep`: a scenario over a grid of values and seeds in worker processes
+  (:func:`sweep`; step by step :func:`plan_sweep`, :func:`run_sweep`), summarised
+  per point and metric (:class:`SweepOutcome`, :func:`sweep_table`).
 """
 
-from ._app import Mission, SimulationApp, SimulationSetup
+from ._app import Measure, Mission, SimulationApp, SimulationSetup
 from ._config import ScenarioError, from_toml, setting
 from ._loader import (
     FaultsConfig,
@@ -27,10 +30,16 @@ from ._progress import Progress
 from ._report import results_dict, statistics, summary_table, write_results
 from ._results import RunResult, RunStatus
 from ._runner import ScenarioRun, check_key, run_scenario
+from ._sweep import run_sweep, sweep
+from ._sweep_grid import SweepAxis, SweepPlan, parse_vary, plan_sweep
+from ._sweep_report import sweep_table
+from ._sweep_results import MetricStats, SweepOutcome, SweepRun
 from ._trace import Trace, TraceCsv
 
 __all__ = [
     "FaultsConfig",
+    "Measure",
+    "MetricStats",
     "Mission",
     "Progress",
     "RunConfig",
@@ -41,6 +50,10 @@ __all__ = [
     "ScenarioRun",
     "SimulationApp",
     "SimulationSetup",
+    "SweepAxis",
+    "SweepOutcome",
+    "SweepPlan",
+    "SweepRun",
     "Trace",
     "TraceCsv",
     "WorldConfig",
@@ -49,11 +62,16 @@ __all__ = [
     "from_toml",
     "load_scenario",
     "parse_override",
+    "parse_vary",
+    "plan_sweep",
     "results_dict",
     "run_scenario",
+    "run_sweep",
     "setting",
     "statistics",
     "summary_table",
+    "sweep",
+    "sweep_table",
     "write_plots",
     "write_results",
 ]

@@ -20,8 +20,8 @@ from apps.fire_brigade import (
     SearchView,
     SinkFirstStrategy,
     SoloStrategy,
-    TimeGainStrategy,
     Strategy,
+    TimeGainStrategy,
     TimeStrategy,
 )
 from apps.fire_brigade.base import Params, Point

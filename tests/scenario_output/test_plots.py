@@ -83,7 +83,7 @@ def test_five_pngs_are_written(written: list[Path]) -> None:
             (35, 95, 125, 200),
             [0, 34, 63, 94, 124, 132],
             id="thesis-counts-reached-and-the-last",
-        ),  # fmt: skip
+        ),
         pytest.param(list(range(1, 30)), (35, 95), [0, 6, 13, 17, 21, 28], id="none-reached"),
         pytest.param([2, 4, 40, 41], (35,), [0, 1, 2, 3], id="last-before-a-count"),
     ],
