@@ -26,6 +26,8 @@ __all__ = ["write_plots"]
 _DPI: Final = 100
 _PANELS: Final = 6
 _MARKERS: Final = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">")
+_NAMED: Final = 300
+"""Robots up to which the snapshots and trajectories write each robot's id."""
 _MARGIN: Final = 0.03
 """Fraction of the larger world side left around the world, so robots on its edge show."""
 
@@ -174,19 +176,22 @@ def _trajectories(
     if len(positions) < 2:
         _note(axes, "fewer than two samples recorded")
         return figure
+    from matplotlib.collections import LineCollection
+
     moved = np.flatnonzero(np.any(positions != positions[0], axis=(0, 2)))
-    for n, k in enumerate(moved.tolist()):
-        path = positions[:, k, :]
-        colour = f"C{n % 10}"
-        axes.plot(path[:, 0], path[:, 1], color=colour, linewidth=0.8, alpha=0.7)
-        axes.scatter(path[0, 0], path[0, 1], s=18, facecolors="none", edgecolors=colour)
-        axes.scatter(path[-1, 0], path[-1, 1], s=18, color=colour)
-        axes.annotate(
-            str(trace.ids[k]), path[-1], xytext=(3, 3), textcoords="offset points", fontsize=6
-        )
-    still = [
-        (label, [k for k in members if k not in set(moved.tolist())]) for label, members in rows
-    ]
+    colours = [f"C{n % 10}" for n in range(len(moved))]
+    paths = np.swapaxes(positions[:, moved, :], 0, 1)  # (robots, samples, 2)
+    axes.add_collection(LineCollection(list(paths), colors=colours, linewidths=0.8, alpha=0.7))
+    starts, ends = positions[0, moved], positions[-1, moved]
+    axes.scatter(starts[:, 0], starts[:, 1], s=18, facecolors="none", edgecolors=colours)
+    axes.scatter(ends[:, 0], ends[:, 1], s=18, color=colours)
+    if len(moved) <= _NAMED:
+        for k, end in zip(moved.tolist(), ends.tolist(), strict=True):
+            axes.annotate(
+                str(trace.ids[k]), end, xytext=(3, 3), textcoords="offset points", fontsize=6
+            )
+    moving = set(moved.tolist())
+    still = [(label, [k for k in members if k not in moving]) for label, members in rows]
     _scatter(axes, positions[-1], [(label, ks) for label, ks in still if ks], world, size=40)
     if any(ks for _, ks in still):
         axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
@@ -331,11 +336,16 @@ def _scatter(
 def _mark(
     axes: Axes, xy: npt.NDArray[np.float64], carrying: npt.NDArray[np.bool_], ids: Sequence[int]
 ) -> None:
-    """Circles the robots that carry an item and writes every robot's id beside it."""
+    """Circles the robots that carry an item and writes every robot's id beside it.
+
+    Ids only up to ``_NAMED`` robots: thousands of labels are unreadable, and slow to draw.
+    """
     held = xy[carrying]
     if len(held):
         axes.scatter(held[:, 0], held[:, 1], s=45, facecolors="none", edgecolors="black",
                      linewidths=0.8, label="carrying")  # fmt: skip
+    if len(ids) > _NAMED:
+        return
     for robot_id, (x, y) in zip(ids, xy.tolist(), strict=True):
         axes.annotate(str(robot_id), (x, y), xytext=(2, 2), textcoords="offset points", fontsize=5)
 
