@@ -191,6 +191,16 @@ def _write_figures(scenario_run: ScenarioRun, scenario: Scenario, out: Path) -> 
     )
 
 
+def _made(out: Path, stderr: TextIO) -> bool:
+    """Makes ``--out`` before anything runs (a long run must not end in "cannot write")."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
+        return False
+    return True
+
+
 def _command_run(
     args: argparse.Namespace,
     stdout: TextIO,
@@ -222,10 +232,7 @@ def _command_run(
 
     try:  # synchronous, before the loop starts: a signal abandons it
         with _leaving_at_once(interrupts, owns_process, (stdout, stderr), abandon_build):
-            try:  # before the run: a long run must not end in "cannot write"
-                out.mkdir(parents=True, exist_ok=True)
-            except OSError as exc:
-                print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
+            if not _made(out, stderr):
                 return EXIT_USAGE
             scenario_run = ScenarioRun(
                 scenario,
@@ -260,10 +267,7 @@ def _command_sweep(
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE
     out: Path = args.out or Path("runs") / f"sweep-{plan.path.stem}"
-    try:  # before the runs: a long sweep must not end in "cannot write"
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        print(f"error: --out {out}: {exc.strerror or exc}", file=stderr)
+    if not _made(out, stderr):
         return EXIT_USAGE
     if plan.real_time:
         print("note: run.virtual=false: each run takes wall time (see time_factor)", file=stderr)

@@ -146,7 +146,7 @@ class ItemLedger:
 
     def holders(self) -> tuple[RobotId, ...]:
         """Every robot that holds at least one item now (in no particular order)."""
-        return tuple(robot for robot, items in self._held.items() if items)
+        return tuple(self._held)  # a robot that holds nothing is not listed
 
     def history(self, item: ItemId) -> tuple[ItemEvent, ...]:
         """Every event of ``item``, oldest first (its first is ``CREATED``).
