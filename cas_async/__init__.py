@@ -58,6 +58,7 @@ from .transport import (
     Transport,
     UdpDirectory,
     UdpTransport,
+    ZenohTransport,
 )
 
 __version__ = "0.1.0"
@@ -114,6 +115,7 @@ __all__ = [
     "UnknownRobotError",
     "VirtualClock",
     "VirtualTimeLoop",
+    "ZenohTransport",
     "loop_factory",
     "message",
     "run",

@@ -7,8 +7,8 @@ For transport authors: implement :class:`Transport` (one shared object) and
 read datagrams in tests and tools).
 
 The transports that ship (also exported by ``cas_async``): :class:`MemoryTransport`,
-:class:`UdpTransport`, and the wrappers :class:`FaultyTransport` and
-:class:`AuthenticatedTransport`.
+:class:`UdpTransport`, :class:`ZenohTransport` (with the ``zenoh`` extra), and the
+wrappers :class:`FaultyTransport` and :class:`AuthenticatedTransport`.
 """
 
 from .._codec import DEFAULT_MAX_DATAGRAM, Codec
@@ -20,6 +20,7 @@ from ._base import DatagramSink, Endpoint, LossCounter, Transport, drop_socket_e
 from ._faulty import Faults, FaultyTransport
 from ._memory import MemoryTransport
 from ._udp import MAX_UDP_PAYLOAD, InsecureBindWarning, UdpDirectory, UdpTransport
+from ._zenoh import ZenohTransport
 
 __all__ = [
     "AuthenticatedTransport",
@@ -40,6 +41,7 @@ __all__ = [
     "UdpDirectory",
     "UdpTransport",
     "WireCodec",
+    "ZenohTransport",
     "describe_fingerprint",
     "drop_socket_error",
     "stack_fingerprint",

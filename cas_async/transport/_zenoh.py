@@ -1,0 +1,574 @@
+"""Robots on Eclipse Zenoh: discovery by liveliness tokens, reliable delivery, any process or host.
+
+Needs the ``zenoh`` extra (``pip install "cas_async[zenoh]"``); importing this module
+does not, opening the first robot does.
+
+One Zenoh session per transport, so per process: every robot of the process shares
+it. Keys, under the transport's ``namespace``::
+
+    {namespace}/alive/{robot}/{zid}             a robot's liveliness token
+    {namespace}/d/{zid}/{receiver}/{sender}     a datagram for ``receiver``
+
+``zid`` is the Zenoh id of the session the robot lives in. A process declares one
+subscriber for the datagrams of its own session (``{namespace}/d/{zid}/**``) and one
+for the tokens: Zenoh runs every plain callback subscriber on its own OS thread, so
+one per robot would cost a thousand threads for a thousand robots. Callbacks only
+append to a queue and wake the event loop once per batch (``call_soon_threadsafe``
+when the queue was empty); the loop then hands each datagram to its robot.
+
+Membership: a robot's token appears when it opens its endpoint and disappears when it
+closes, when its process dies (about 2 ms after SIGKILL on loopback) or, for a frozen
+process, when Zenoh's lease expires (about 10 s). Robots that follow membership hear
+``robot_joined``/``robot_left`` (``Layer.knows``, ``on_robot_left``).
+
+The sender of a datagram is the robot named in the key it was published under, and
+only while that robot's token is alive; a datagram from a robot no token speaks for is
+refused as ``unknown_source``, one whose header claims another robot than its key as
+``spoofed_sender``. Zenoh itself does not stop a session from publishing under any
+key: on a network you do not control, restrict who may publish with Zenoh's access
+control (by interface, certificate or user) and give the swarm a key
+(:class:`~cas_async.transport._authenticated.AuthenticatedTransport` works on top of
+this transport unchanged).
+
+Delivery is reliable: puts use ``CongestionControl.BLOCK``, so a full queue makes
+the sender wait instead of dropping (Zenoh's default, ``DROP``, lost 22% of a burst
+in one process). Datagrams between robots of the same process do not go through Zenoh.
+
+Network defaults are loopback only: the session listens on ``tcp/127.0.0.1`` (a port
+the OS picks) and multicast scouting is off, so nothing leaves this machine unless
+``listen``, ``connect`` or ``config`` say so. Listening beyond loopback without a swarm
+key warns (:class:`~cas_async.transport._udp.InsecureBindWarning`). Processes find
+each other through ``connect`` (an endpoint another session listens on) or a router
+(a session in ``mode="router"``, e.g. ``python -m cas_async world``): since Zenoh 1.9
+peers do not route for other peers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import json
+import re
+import threading
+import warnings
+from collections import deque
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Final, Literal, final
+
+from .._codec import DEFAULT_MAX_DATAGRAM
+from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
+from .._types import Address, RobotId
+from ._base import DatagramSink, Endpoint, Transport
+from ._udp import InsecureBindWarning
+
+if TYPE_CHECKING:
+    import zenoh
+
+__all__ = ["ZenohTransport", "import_zenoh", "loopback_config"]
+
+Mode = Literal["peer", "client", "router"]
+
+_NAMESPACE: Final = re.compile(r"[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*")
+_LOOPBACK_LISTEN: Final = ("tcp/127.0.0.1:0",)
+_REMOTE: Final = 0
+_LOCAL: Final = 1
+_APPEARED: Final = 2
+_GONE: Final = 3
+_Entry = tuple[int, str, bytes]
+
+
+def import_zenoh() -> Any:
+    """The ``zenoh`` module, or a ``ConfigurationError`` saying how to install it."""
+    try:
+        import zenoh
+    except ImportError as exc:
+        raise ConfigurationError(
+            'the Zenoh transport needs eclipse-zenoh: pip install "cas_async[zenoh]"'
+        ) from exc
+    return zenoh
+
+
+def loopback_config(
+    *, mode: Mode = "peer", listen: Sequence[str] = _LOOPBACK_LISTEN, connect: Sequence[str] = ()
+) -> zenoh.Config:
+    """A Zenoh configuration that stays on this machine unless ``listen``/``connect`` say so.
+
+    Multicast scouting is off (it would announce the session on the LAN) and the
+    session listens on the endpoints given, loopback by default.
+
+    Raises:
+        ConfigurationError: zenoh is not installed, or an endpoint is not valid.
+    """
+    config: zenoh.Config = import_zenoh().Config()
+    try:
+        config.insert_json5("mode", json.dumps(mode))
+        config.insert_json5("listen/endpoints", json.dumps(list(listen)))
+        config.insert_json5("connect/endpoints", json.dumps(list(connect)))
+        config.insert_json5("scouting/multicast/enabled", "false")
+    except Exception as exc:  # zenoh.ZError: the message names the bad value
+        raise ConfigurationError(f"Zenoh configuration: {exc}") from exc
+    return config
+
+
+def _beyond_loopback(endpoint: str) -> bool:
+    """Whether a Zenoh endpoint (``tcp/HOST:PORT``) listens beyond this machine."""
+    _, _, address = endpoint.partition("/")
+    host = address.rsplit(":", 1)[0].strip("[]")
+    try:
+        return not ipaddress.ip_address(host).is_loopback
+    except ValueError:  # a name, or an interface: assume the worst
+        return host != "localhost"
+
+
+class _Inbox:
+    """What Zenoh's threads hand to the event loop: one queue, one wake-up per batch.
+
+    Entries are ``(kind, key, payload)``: :data:`_REMOTE` (a datagram from another
+    process, under its key), :data:`_LOCAL` (from this process; the key is
+    ``receiver/sender``), :data:`_APPEARED` or :data:`_GONE` (a liveliness token).
+    """
+
+    __slots__ = ("_drain", "_loop", "_queue", "_scheduled")
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, drain: Any) -> None:
+        self._loop = loop
+        self._drain = drain
+        self._queue: deque[_Entry] = deque()
+        self._scheduled = False
+
+    def put(self, entry: _Entry) -> None:
+        """Called on a Zenoh thread (or the loop's): queues ``entry``, wakes the loop once."""
+        self._queue.append(entry)
+        if not self._scheduled:
+            self._scheduled = True
+            with contextlib.suppress(RuntimeError):  # the loop closed: nothing left to tell
+                self._loop.call_soon_threadsafe(self._run)
+
+    def _run(self) -> None:
+        self._scheduled = False  # first: what arrives from now on schedules another pass
+        queue = self._queue
+        entries = [queue.popleft() for _ in range(len(queue))]
+        self._drain(entries)
+
+
+@final
+class ZenohEndpoint(Endpoint):
+    """A robot's attachment to a :class:`ZenohTransport`."""
+
+    __slots__ = ("_closed", "_keys", "_network", "_sink", "_token", "max_datagram_size", "robot_id")
+
+    def __init__(
+        self, network: ZenohTransport, robot_id: RobotId, sink: DatagramSink, token: Any
+    ) -> None:
+        self._network = network
+        self._sink = sink
+        self._token = token
+        self._closed = False
+        self._keys: dict[RobotId, tuple[str, Any]] = {}  # receiver -> (its zid, key expr)
+        self.robot_id = robot_id
+        self.max_datagram_size = network.max_datagram_size
+
+    @property
+    def address(self) -> Address:
+        return ("zenoh", self._network.zid, self.robot_id)
+
+    @property
+    def sink(self) -> DatagramSink:
+        """Where this robot's datagrams go."""
+        return self._sink
+
+    def send(self, robot_id: RobotId, data: bytes) -> None:
+        if self._closed:
+            raise RobotStateError(f"robot {self.robot_id}: Zenoh endpoint is closed")
+        network = self._network
+        zid = network.zid_of(robot_id)
+        if zid is None:
+            raise UnknownRobotError(
+                f"robot {self.robot_id}: robot {robot_id} is not on this Zenoh swarm "
+                f"(no liveliness token under {network.namespace!r})"
+            )
+        if zid == network.zid:
+            network.deliver_here(robot_id, self.robot_id, data)
+            return
+        cached = self._keys.get(robot_id)
+        if cached is None or cached[0] != zid:
+            key = network.datagram_key(zid, robot_id, self.robot_id)
+            cached = self._keys[robot_id] = (zid, key)
+        network.put(cached[1], data)
+
+    def peers(self) -> Iterable[RobotId]:
+        return [rid for rid in self._network.members() if rid != self.robot_id]
+
+    def knows(self, robot_id: RobotId) -> bool:
+        return self._network.zid_of(robot_id) is not None
+
+    def follow_membership(self, follow: bool) -> None:
+        self._network.follow(self, follow and not self._closed)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._network.detach(self, self._token)
+
+
+@final
+class ZenohTransport(Transport):
+    """Robots in any process or host, over Eclipse Zenoh.
+
+    Args:
+        namespace: the swarm's key prefix; only robots under the same namespace
+            see each other (``/``-separated words of letters, digits, ``_``, ``-``).
+        mode: Zenoh's ``"peer"`` (default), ``"client"`` (everything through a
+            router) or ``"router"`` (routes for others: one per swarm of many processes).
+        listen: endpoints the session listens on; loopback, port picked by the OS,
+            by default.
+        connect: endpoints of other sessions (a router, a peer) to connect to.
+        config: a complete ``zenoh.Config`` instead of the three above (yours to
+            make loopback-only, or not).
+        max_datagram_size: the largest datagram a robot may send, in bytes.
+        shared_virtual_time: the processes' loops share virtual time through the
+            barrier of a run across processes (``run --processes``), so robots may
+            use a virtual clock; never set it otherwise, as a lone virtual loop would
+            jump past datagrams still on their way.
+
+    Raises:
+        ConfigurationError: the namespace is not a valid key prefix.
+    """
+
+    supports_virtual_time = False
+
+    def __init__(
+        self,
+        *,
+        namespace: str = "cas_async",
+        mode: Mode = "peer",
+        listen: Sequence[str] = _LOOPBACK_LISTEN,
+        connect: Sequence[str] = (),
+        config: zenoh.Config | None = None,
+        max_datagram_size: int = DEFAULT_MAX_DATAGRAM,
+        shared_virtual_time: bool = False,
+    ) -> None:
+        self.supports_virtual_time = shared_virtual_time
+        if not isinstance(namespace, str) or not _NAMESPACE.fullmatch(namespace):
+            raise ConfigurationError(
+                f"Zenoh namespace must be /-separated words of letters, digits, _ and -, "
+                f"got {namespace!r}"
+            )
+        if mode not in ("peer", "client", "router"):
+            raise ConfigurationError(f"Zenoh mode must be peer, client or router, got {mode!r}")
+        self.namespace = namespace
+        self.mode: Mode = mode
+        self.listen = tuple(listen)
+        self.connect = tuple(connect)
+        self._config = config
+        self.max_datagram_size = max_datagram_size
+        self._zenoh: Any = None
+        self._session: Any = None
+        self._opening: asyncio.Future[Any] | None = None
+        self._kept = False  # opened by start(): stays open until close()
+        self._subscribers: list[Any] = []
+        self._inbox: _Inbox | None = None
+        self._zid = ""
+        self._put_options: dict[str, Any] = {}
+        self._local: dict[RobotId, ZenohEndpoint] = {}
+        self._where: dict[RobotId, str] = {}  # every robot with a live token -> its zid
+        self._followers: dict[RobotId, ZenohEndpoint] = {}
+        self._waiters: list[asyncio.Future[None]] = []  # wait_for(): woken by every join
+        self._lock = threading.Lock()  # the session's life vs. a thread opening it
+        self.sent = 0
+        """Datagrams published to other processes."""
+        self.received = 0
+        """Datagrams from other processes handed to a robot of this one."""
+        self.dropped: dict[str, int] = {}
+        """What arrived and could not be handed to a robot, by reason."""
+
+    # -- the session -----------------------------------------------------------------
+
+    @property
+    def zid(self) -> str:
+        """The Zenoh id of this transport's session (``""`` before the first robot opens)."""
+        return self._zid
+
+    @property
+    def session(self) -> Any:
+        """The open ``zenoh.Session``, or ``None``: shared with the runtime's own keys."""
+        return self._session
+
+    async def start(self) -> None:
+        """Opens the session now, until :meth:`close` (else the robots open and close it).
+
+        Without it, the first robot's ``open`` opens the session and the last
+        robot's ``close`` closes it. After it, the session stays open for other
+        uses (the runtime's control messages) until :meth:`close`.
+
+        Raises:
+            ConfigurationError: zenoh is missing, or the session cannot open
+                (e.g. an endpoint is taken or cannot be reached).
+        """
+        self._kept = True
+        await self._start()
+
+    async def _start(self) -> None:
+        if self._session is not None:
+            return
+        if self._opening is None:
+            self._opening = asyncio.ensure_future(self._open_session())
+        try:
+            await asyncio.shield(self._opening)
+        except asyncio.CancelledError:
+            # The thread opening the session cannot be cancelled: let it finish and
+            # close what it opened, so no session keeps the process alive.
+            if self._opening is not None and not self._opening.done():
+                with contextlib.suppress(Exception, asyncio.CancelledError):
+                    await self._opening
+            if not self._local:
+                self.close()
+            raise
+        finally:
+            if self._opening is not None and self._opening.done():
+                self._opening = None
+
+    async def _open_session(self) -> None:
+        zenoh = self._zenoh = import_zenoh()
+        config = self._config
+        if config is None:
+            config = loopback_config(mode=self.mode, listen=self.listen, connect=self.connect)
+        self._warn_if_exposed()
+        try:
+            session = await asyncio.to_thread(zenoh.open, config)
+        except Exception as exc:  # zenoh.ZError
+            raise ConfigurationError(f"cannot open a Zenoh session: {exc}") from exc
+        loop = asyncio.get_running_loop()
+        with self._lock:
+            self._session = session
+            self._zid = str(session.zid())
+            self._inbox = inbox = _Inbox(loop, self._drain)
+            self._put_options = {"congestion_control": zenoh.CongestionControl.BLOCK}
+            ns = self.namespace
+            try:
+                self._subscribers.append(
+                    session.declare_subscriber(
+                        f"{ns}/d/{self._zid}/**",
+                        lambda sample: inbox.put(
+                            (_REMOTE, str(sample.key_expr), sample.payload.to_bytes())
+                        ),
+                    )
+                )
+                self._subscribers.append(
+                    session.liveliness().declare_subscriber(
+                        f"{ns}/alive/*/*",
+                        zenoh.handlers.Callback(
+                            lambda sample: inbox.put(
+                                (
+                                    _APPEARED if sample.kind == zenoh.SampleKind.PUT else _GONE,
+                                    str(sample.key_expr),
+                                    b"",
+                                )
+                            ),
+                            indirect=False,
+                        ),
+                        history=True,
+                    )
+                )
+            except BaseException:
+                self._close_session()
+                raise
+
+    def _warn_if_exposed(self) -> None:
+        if self.authenticated or self._config is not None:
+            return
+        exposed = [endpoint for endpoint in self.listen if _beyond_loopback(endpoint)]
+        if exposed:
+            warnings.warn(
+                f"Zenoh session listens on {', '.join(exposed)} without authentication: "
+                "anyone who can reach it can send robots messages. Give the swarm a key "
+                "(CAS_ASYNC_SWARM_KEY=<hex> or a key file, see SwarmKey) and wrap the "
+                "transport in AuthenticatedTransport, or listen on tcp/127.0.0.1",
+                InsecureBindWarning,
+                stacklevel=4,
+            )
+
+    def close(self) -> None:
+        """Closes every endpoint and the session; idempotent (a later ``open`` starts again)."""
+        self._kept = False
+        for endpoint in list(self._local.values()):
+            endpoint.close()
+        self._close_session()
+
+    def _close_session(self) -> None:
+        with self._lock:
+            session, self._session = self._session, None
+            subscribers, self._subscribers = self._subscribers, []
+            self._where.clear()
+            self._zid = ""
+        for subscriber in subscribers:
+            with contextlib.suppress(Exception):
+                subscriber.undeclare()
+        if session is not None:
+            session.close()
+
+    async def __aenter__(self) -> ZenohTransport:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- robots ----------------------------------------------------------------------
+
+    async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:
+        """Attaches a robot and declares its liveliness token.
+
+        Raises:
+            ConfigurationError: the id is not an int, is taken in this process or by a
+                live robot elsewhere, or the session cannot open.
+        """
+        if not isinstance(robot_id, int) or isinstance(robot_id, bool):
+            raise ConfigurationError(f"a Zenoh robot id must be an int, got {robot_id!r}")
+        if robot_id in self._local:
+            raise ConfigurationError(f"robot {robot_id} is already attached to this ZenohTransport")
+        await self._start()
+        elsewhere = self._where.get(robot_id)
+        if elsewhere is not None and elsewhere != self._zid:
+            raise ConfigurationError(
+                f"robot {robot_id} is already on the Zenoh swarm {self.namespace!r} "
+                f"(session {elsewhere})"
+            )
+        token = self._session.liveliness().declare_token(
+            f"{self.namespace}/alive/{robot_id}/{self._zid}"
+        )
+        endpoint = self._local[robot_id] = ZenohEndpoint(self, robot_id, sink, token)
+        self._joined(robot_id, self._zid)
+        return endpoint
+
+    def detach(self, endpoint: ZenohEndpoint, token: Any) -> None:
+        """Called by a closing endpoint: its token goes, the others hear it left."""
+        robot_id = endpoint.robot_id
+        self.follow(endpoint, False)
+        if self._local.get(robot_id) is endpoint:
+            del self._local[robot_id]
+            with contextlib.suppress(Exception):  # the session may be closed already
+                token.undeclare()
+            self._left(robot_id, self._zid)
+        if not self._local and not self._kept:
+            self._close_session()
+
+    def follow(self, endpoint: ZenohEndpoint, follow: bool) -> None:
+        """Whether ``endpoint``'s robot hears of robots joining and leaving."""
+        if follow:
+            self._followers[endpoint.robot_id] = endpoint
+        elif self._followers.get(endpoint.robot_id) is endpoint:
+            del self._followers[endpoint.robot_id]
+
+    def zid_of(self, robot_id: RobotId) -> str | None:
+        """The session robot ``robot_id`` lives in, while its token is alive."""
+        return self._where.get(robot_id)
+
+    async def wait_for(self, robot_ids: Iterable[RobotId]) -> None:
+        """Returns once every robot of ``robot_ids`` has a live token (is reachable).
+
+        Bound it with a timeout: a robot that never comes makes it wait for ever.
+        """
+        missing = set(robot_ids)
+        while missing - self._where.keys():
+            waiter = asyncio.get_running_loop().create_future()
+            self._waiters.append(waiter)
+            await waiter
+
+    def members(self) -> list[RobotId]:
+        """Every robot with a live token (this process's included)."""
+        return list(self._where)
+
+    def is_local(self, robot_id: RobotId) -> bool:
+        """Whether robot ``robot_id`` is attached to this transport (this process)."""
+        return robot_id in self._local
+
+    def datagram_key(self, zid: str, receiver: RobotId, sender: RobotId) -> Any:
+        """The key a datagram from ``sender`` to ``receiver`` (in session ``zid``) goes under."""
+        return self._zenoh.KeyExpr(f"{self.namespace}/d/{zid}/{receiver}/{sender}")
+
+    def put(self, key: Any, data: bytes) -> None:
+        """Publishes one datagram to another process (reliably: waits when queues are full)."""
+        session = self._session
+        if session is None:
+            raise RobotStateError("the Zenoh session is closed")
+        session.put(key, data, **self._put_options)
+        self.sent += 1
+
+    def deliver_here(self, receiver: RobotId, sender: RobotId, data: bytes) -> None:
+        """A datagram between two robots of this process: on the loop's next pass."""
+        inbox = self._inbox
+        if inbox is not None:
+            inbox.put((_LOCAL, f"{receiver}/{sender}", data))
+
+    # -- what arrives ----------------------------------------------------------------
+
+    def _drain(self, entries: list[_Entry]) -> None:
+        local, where = self._local, self._where
+        for kind, key, payload in entries:
+            if kind >= _APPEARED:
+                self._token_event(key, appeared=kind == _APPEARED)
+                continue
+            *_, to, by = key.rsplit("/", 2)
+            try:
+                receiver, sender = int(to), int(by)
+            except ValueError:
+                self._drop("bad_key", key)
+                continue
+            if kind == _REMOTE:
+                self.received += 1
+            endpoint = local.get(receiver)
+            if endpoint is None:
+                self._drop("no_receiver", key)
+                continue
+            try:
+                endpoint.sink.datagram_received(payload, sender if sender in where else None)
+            except Exception as exc:  # a broken sink must not lose the rest of the batch
+                asyncio.get_running_loop().call_exception_handler(
+                    {"message": f"robot {receiver}: sink failed", "exception": exc}
+                )
+
+    def _token_event(self, key: str, *, appeared: bool) -> None:
+        *_, robot, zid = key.rsplit("/", 2)
+        try:
+            robot_id = int(robot)
+        except ValueError:
+            self._drop("bad_key", key)
+            return
+        if appeared:
+            self._joined(robot_id, zid)
+        else:
+            self._left(robot_id, zid)
+
+    def _joined(self, robot_id: RobotId, zid: str) -> None:
+        before = self._where.get(robot_id)
+        if before == zid:
+            return
+        self._where[robot_id] = zid
+        waiters, self._waiters = self._waiters, []
+        for waiter in waiters:
+            if not waiter.done():
+                waiter.set_result(None)
+        if before is None:
+            for follower in list(self._followers.values()):
+                if follower.robot_id != robot_id:
+                    follower.sink.robot_joined(robot_id)
+
+    def _left(self, robot_id: RobotId, zid: str) -> None:
+        if self._where.get(robot_id) != zid:  # gone already, or alive in another session
+            return
+        del self._where[robot_id]
+        for follower in list(self._followers.values()):
+            follower.sink.robot_left(robot_id)
+
+    def _drop(self, reason: str, detail: str) -> None:
+        self.dropped[reason] = self.dropped.get(reason, 0) + 1
+
+    def __repr__(self) -> str:
+        where = f"session {self._zid}" if self._zid else "not open"
+        return (
+            f"ZenohTransport(namespace={self.namespace!r}, {len(self._local)} robots here, "
+            f"{len(self._where)} in the swarm, {where})"
+        )
