@@ -250,6 +250,22 @@ class ScaledClock(Clock):
     def _loop_time_per_sim_second(self) -> float:
         return self._scale
 
+    def start_at_wall(self, epoch: float) -> None:
+        """Fixes simulated time 0 at wall-clock instant ``epoch`` (``time.time()`` seconds).
+
+        How clocks in several processes, or hosts with synchronised clocks, keep one
+        simulated time: each is told the same instant. Call it on the loop the robots
+        run on, before they start.
+
+        Raises:
+            ConfigurationError: the clock has started already.
+        """
+        if self._origin is not None:
+            raise ConfigurationError("this ScaledClock has started already: align it before")
+        self.start()
+        loop, _ = self._loop_and_pad()
+        self._origin = loop.time() + (epoch - time.time())
+
     def __repr__(self) -> str:
         return f"ScaledClock(time_factor={self._factor:g})"
 

@@ -105,6 +105,17 @@ class Swarm:
 
     async def __aenter__(self) -> Swarm:
         """Opens every robot's endpoint, then starts every robot's layers."""
+        await self.open()
+        self.start()
+        return self
+
+    async def open(self) -> None:
+        """First half of ``async with``: opens every robot's endpoint (none runs yet).
+
+        Between the halves, the robots can be reached but do nothing: a swarm spread
+        over processes waits there until every process's robots can be reached.
+        On failure, the endpoints opened are closed again.
+        """
         opened: list[Robot] = []
         try:
             for robot in self:
@@ -114,10 +125,12 @@ class Swarm:
             for robot in opened:
                 robot.close()
             raise
+
+    def start(self) -> None:
+        """Second half of ``async with``: starts every robot's layers (see :meth:`open`)."""
         for robot in self:
             robot.start()
         self._running = True
-        return self
 
     async def __aexit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object

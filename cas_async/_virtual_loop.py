@@ -49,10 +49,7 @@ class _JumpingSelector(selectors.BaseSelector):
         # Idle: nothing to run before the next timer or I/O.
         if self._loop.wake_idle_waiters():  # they look first; time moves after
             return []
-        if timeout is None:  # no timer at all: only another thread can wake us
-            return self._inner.select(None)
-        self._loop.advance(timeout)
-        return []
+        return self._loop.when_idle(timeout, self._inner)
 
     def close(self) -> None:
         self._inner.close()
@@ -113,6 +110,20 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         for future in waiters:
             future.set_result(None)
         return bool(waiters)
+
+    def when_idle(
+        self, timeout: float | None, selector: selectors.BaseSelector
+    ) -> list[tuple[selectors.SelectorKey, int]]:
+        """What the idle loop does: jumps ``timeout`` ahead, or waits for a thread.
+
+        ``timeout`` is the time to the next timer (``None``: no timer). A loop whose
+        time is shared with other processes overrides this to ask them first (see
+        :mod:`cas_async.scenario._barrier`); ``selector`` is the real one, to wait on.
+        """
+        if timeout is None:  # no timer at all: only another thread can wake us
+            return selector.select(None)
+        self.advance(timeout)
+        return []
 
     def time(self) -> float:
         """The virtual time, in seconds."""

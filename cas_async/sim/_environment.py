@@ -21,6 +21,7 @@ Application layers never touch it: a robotic layer reaches it through a
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Final
 
@@ -31,6 +32,7 @@ from .._errors import ConfigurationError, SimulationError, UnknownRobotError
 from .._pose import Pose
 from .._positions import Positions
 from .._types import ItemId, RobotId
+from ._authority import ItemAuthority
 from ._grid import CellGrid
 from ._items import ItemLedger
 from ._kinematics import Motion
@@ -103,6 +105,27 @@ class Environment:
         # positions_at() is cached for the latest instant: in a simulation many
         # robots query the same instant, and any change of motion clears it.
         self._cache: tuple[float, Positions] | None = None
+        self._motion_watchers: list[Callable[[RobotId, Motion, float], None]] = []
+        self._authority: ItemAuthority | None = None
+
+    # -- across processes -------------------------------------------------------------
+
+    def watch_motions(self, callback: Callable[[RobotId, Motion, float], None]) -> None:
+        """Calls ``callback(robot_id, motion, start_time)`` after every motion started or halt.
+
+        How a simulation spread over processes publishes each motion as its closed
+        form, so every process keeps every pose (see :meth:`start_motion`).
+        """
+        self._motion_watchers.append(callback)
+
+    @property
+    def item_authority(self) -> ItemAuthority | None:
+        """Where the hands' item operations are decided, when not in this ledger."""
+        return self._authority
+
+    @item_authority.setter
+    def item_authority(self, authority: ItemAuthority | None) -> None:
+        self._authority = authority
 
     # -- membership -------------------------------------------------------------------
 
@@ -228,6 +251,8 @@ class Environment:
                 robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y
             )
         self._cache = None
+        for watcher in self._motion_watchers:
+            watcher(robot_id, motion, start_time)
 
     def halt(self, robot_id: RobotId, t: float) -> Pose:
         """Stops the robot where it is at ``t``; it stands there from ``t`` on.

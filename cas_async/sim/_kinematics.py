@@ -15,12 +15,13 @@ counter-clockwise.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from .._errors import SimulationError
-from .._phases import check_phases
+from .._phases import Phase, check_phases
 from .._pose import Pose, normalize_angle
-from .._profiles import SpeedProfile
+from .._profiles import PiecewiseSpeed, SpeedProfile
 
 __all__ = ["Motion", "check_turn_rate"]
 
@@ -106,6 +107,50 @@ class Motion:
         end = Pose(target.x, target.y, start.bearing_to(target.x, target.y))
         turn, rotation_time = _rotation(start, end.heading, turn_rate)
         return cls(start, end, turn, rotation_time, length, profile.time_for(length), profile)
+
+    def to_numbers(self) -> list[float]:
+        """The motion as plain numbers, for :meth:`from_numbers` in another process.
+
+        The profile travels as its phases: exactly what evaluating a pose needs.
+        """
+        numbers = [
+            self.start.x,
+            self.start.y,
+            self.start.heading,
+            self.end.x,
+            self.end.y,
+            self.end.heading,
+            self.turn,
+            self.rotation_time,
+            self.length,
+            self.translation_time,
+        ]
+        if self.profile is not None:
+            for phase in self.profile.phases():
+                numbers += (phase.duration, phase.speed, phase.acceleration)
+        return numbers
+
+    @classmethod
+    def from_numbers(cls, numbers: Sequence[float]) -> Motion:
+        """The motion :meth:`to_numbers` gave, exact to the bit.
+
+        Raises:
+            SimulationError: the numbers do not describe a motion.
+        """
+        if len(numbers) < 10 or (len(numbers) - 10) % 3:
+            raise SimulationError(f"a motion is 10 numbers and 3 per phase, got {len(numbers)}")
+        values = [float(n) for n in numbers]
+        phases = [Phase(*values[i : i + 3]) for i in range(10, len(values), 3)]
+        turn, rotation_time, length, translation_time = values[6:10]
+        return cls(
+            Pose(*values[0:3]),
+            Pose(*values[3:6]),
+            turn,
+            rotation_time,
+            length,
+            translation_time,
+            PiecewiseSpeed(tuple(phases)) if phases else None,
+        )
 
     @property
     def duration(self) -> float:
