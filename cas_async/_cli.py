@@ -56,6 +56,8 @@ from .scenario import (
     run_sweep,
     sweep_table,
 )
+from .scenario._barrier import BarrierLoop
+from .scenario._distributed import World, run_worker
 from .scenario._report import remove_partial_files, summary_table, write_results
 from .scenario._sweep_plots import write_box_plots
 from .scenario._sweep_report import write_sweep_files
@@ -99,7 +101,16 @@ def _parser() -> argparse.ArgumentParser:
         help="virtual time: as fast as possible, deterministic (memory transport)",
     )
     runner.add_argument(
-        "--transport", choices=("udp", "memory"), help="how robots talk (overrides run.transport)"
+        "--transport",
+        choices=("udp", "memory", "zenoh"),
+        help="how robots talk (overrides run.transport)",
+    )
+    runner.add_argument(
+        "--processes",
+        type=_at_least_one,
+        metavar="N",
+        help="run the robots in N worker processes on Zenoh, this process being the world "
+        "(needs the zenoh extra); virtual time too",
     )
     runner.add_argument(
         "--out",
@@ -124,6 +135,39 @@ def _parser() -> argparse.ArgumentParser:
         dest="overrides",
         help="override a scenario key, e.g. strategy.name=solo",
     )
+    world = commands.add_parser(
+        "world",
+        help="be the world of a run whose workers join from other hosts",
+        description="Load a scenario, listen for N workers (python -m cas_async worker), run "
+        "it with them, and write its results as `run` does. Every message is signed with the "
+        "swarm key.",
+    )
+    world.add_argument("scenario", type=Path, help="the scenario file (TOML)")
+    world.add_argument("--listen", required=True, metavar="ENDPOINT",
+                       help="where workers connect, e.g. tcp/192.0.2.1:7447")  # fmt: skip
+    world.add_argument("--workers", type=_at_least_one, required=True, metavar="N",
+                       help="how many workers to wait for")  # fmt: skip
+    world.add_argument("--key-file", type=Path, required=True, metavar="FILE",
+                       help="the swarm key (hex); every worker needs the same")  # fmt: skip
+    world.add_argument("--seed", type=int, help="random seed (overrides run.seed)")
+    world.add_argument("--virtual", action="store_true", help="virtual time, shared by barrier")
+    world.add_argument("--out", type=Path, metavar="DIR", help="where to write")
+    world.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    world.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       dest="overrides", help="override a scenario key")  # fmt: skip
+    worker = commands.add_parser(
+        "worker",
+        help="run a share of the robots of a world's run",
+        description="Connect to a world (python -m cas_async world or run --processes), "
+        "receive the scenario from it, and run this worker's share of the robots.",
+    )
+    worker.add_argument("--connect", required=True, metavar="ENDPOINT",
+                        help="the world's Zenoh endpoint, e.g. tcp/192.0.2.1:7447")  # fmt: skip
+    worker.add_argument("--key-file", type=Path, metavar="FILE",
+                        help=f"the swarm key (hex); default: {SwarmKey.ENV_VAR}")  # fmt: skip
+    worker.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                        help="also listen here, so other workers link to this one directly "
+                        "(peer mode); default: everything through the world's router")  # fmt: skip
     sweeper = commands.add_parser(
         "sweep",
         help="run a scenario over a grid of values and seeds",
@@ -162,13 +206,13 @@ def _overrides(args: argparse.Namespace) -> list[str]:
     overrides = list(args.overrides)
     if args.seed is not None:
         overrides.append(f"run.seed={args.seed}")
-    if args.time_factor is not None:
+    if getattr(args, "time_factor", None) is not None:
         overrides += [f"run.time_factor={args.time_factor!r}", "run.virtual=false"]
     if args.virtual:
         overrides.append("run.virtual=true")
-        if args.transport is None:
+        if getattr(args, "transport", None) is None:
             overrides.append('run.transport="memory"')
-    if args.transport is not None:
+    if getattr(args, "transport", None) is not None:
         overrides.append(f'run.transport="{args.transport}"')
     return overrides
 
@@ -234,12 +278,14 @@ def _command_run(
         with _leaving_at_once(interrupts, owns_process, (stdout, stderr), abandon_build):
             if not _made(out, stderr):
                 return EXIT_USAGE
+            world = _world(args, scenario, key)
             scenario_run = ScenarioRun(
                 scenario,
                 key=key,
                 progress_to=stderr,
                 stop=stop,
                 trace_csv=out / "trace.csv",
+                world=world,
             )
     except Interrupted:
         with interrupts.deferred():
@@ -250,8 +296,30 @@ def _command_run(
     )
     with session.leaving_at_once():
         with interrupts.calling(session.request_stop):
-            run(session.drive(stop), virtual=scenario.run.virtual)
+            if world is not None and scenario.run.virtual:
+                with asyncio.Runner(loop_factory=BarrierLoop) as runner:
+                    runner.run(session.drive(stop))
+            else:
+                run(session.drive(stop), virtual=scenario.run.virtual)
         return session.finish()
+
+
+def _world(args: argparse.Namespace, scenario: Scenario, key: SwarmKey | None) -> World | None:
+    """The world of a run across processes (``--processes``, ``world``), or ``None``."""
+    if args.command == "world":
+        return World(scenario, workers=args.workers, key=key, listen=args.listen, spawn=False)
+    if getattr(args, "processes", None):
+        return World(scenario, workers=args.processes, key=key)
+    return None
+
+
+def _command_worker(args: argparse.Namespace, stderr: TextIO) -> int:
+    try:
+        key = SwarmKey.from_file(args.key_file) if args.key_file else SwarmKey.from_env()
+        return run_worker(args.connect, key, listen=args.listen)
+    except ConfigurationError as exc:
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
 
 
 def _command_sweep(
@@ -489,6 +557,10 @@ def main(
             args = _parser().parse_args(argv)
             if args.command == "run":
                 return _command_run(args, stdout, stderr, interrupts, owns_process)
+            if args.command == "world":
+                return _command_run(args, stdout, stderr, interrupts, owns_process)
+            if args.command == "worker":
+                return _command_worker(args, stderr)
             if args.command == "sweep":
                 return _command_sweep(args, stdout, stderr, interrupts, owns_process)
         raise AssertionError(f"unhandled command {args.command!r}")  # argparse requires one

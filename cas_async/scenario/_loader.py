@@ -100,7 +100,9 @@ class RunConfig:
     seed: int = setting(0, ge=0, doc="seed of the run's random generator")
     virtual: bool = setting(False, doc="virtual time instead of scaled real time")
     time_factor: float = setting(50.0, gt=0, doc="simulated seconds per wall second")
-    transport: Literal["udp", "memory"] = setting("udp", doc="how robots exchange messages")
+    transport: Literal["udp", "memory", "zenoh"] = setting(
+        "udp", doc="how robots exchange messages (zenoh: the zenoh extra)"
+    )
     pass_objects: bool = setting(
         False, doc="memory transport: pass message objects instead of encoding them"
     )
@@ -218,6 +220,18 @@ def load_scenario(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -
     except ScenarioError as error:
         located = error.with_file(file).with_traceback(error.__traceback__)
         raise located from error.__cause__
+
+
+def scenario_from_data(path: Path, data: dict[str, Any]) -> Scenario:
+    """Validates a scenario's data as read (and overridden) elsewhere: a worker's copy.
+
+    Raises:
+        ScenarioError: as :func:`load_scenario`, reported against ``path``.
+    """
+    try:
+        return _validate(path, data)
+    except ScenarioError as error:
+        raise error.with_file(str(path)) from error.__cause__
 
 
 def parse_override(text: str) -> tuple[str, Any]:

@@ -18,7 +18,7 @@ import math
 import time
 import traceback
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from pathlib import Path
 from typing import Any, TextIO, final
 
@@ -36,7 +36,9 @@ from ..transport._base import Transport
 from ..transport._faulty import FaultyTransport
 from ..transport._memory import MemoryTransport
 from ..transport._udp import UdpTransport
+from ..transport._zenoh import ZenohTransport
 from ._app import Mission, SimulationSetup
+from ._distributed import World
 from ._gc_policy import young_generation_for
 from ._loader import Scenario
 from ._progress import Progress
@@ -59,11 +61,18 @@ def _transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transp
     """The run's transport: the ``[faults]`` on the wire, if any, and signed with ``key``."""
     run = scenario.run
     check_key(scenario, key)
-    transport: Transport = (
-        MemoryTransport(pass_objects=run.pass_objects)
-        if run.transport == "memory"
-        else UdpTransport()
-    )
+    transport: Transport
+    if run.transport == "memory":
+        transport = MemoryTransport(pass_objects=run.pass_objects)
+    elif run.transport == "zenoh":
+        if run.virtual:
+            raise ConfigurationError(
+                f"{scenario.path}: run.transport: virtual time over Zenoh needs processes that "
+                "share it: run with --processes N, or on scaled time (virtual = false)"
+            )
+        transport = ZenohTransport()
+    else:
+        transport = UdpTransport()
     faults = scenario.faults.as_faults()
     if faults.any:
         seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
@@ -123,7 +132,9 @@ class ScenarioRun:
         observe: Callable[[Environment], None] | None = None,
         wall_clock: Callable[[], float] = time.perf_counter,
         trace_csv: Path | None = None,
+        world: World | None = None,
     ) -> None:
+        self._world = world
         self._wall_clock = wall_clock
         self._trace_path = trace_csv
         self._trace_csv: TraceCsv | None = None
@@ -132,8 +143,13 @@ class ScenarioRun:
         self._stop = asyncio.Event() if stop is None else stop  # interrupt() sets it too
         run = scenario.run
         self.environment = environment = Environment()
-        self._clock = clock = _clock(scenario)
-        self._transport = _transport(scenario, clock, key)
+        if world is None:
+            self._clock = clock = _clock(scenario)
+            self._transport = _transport(scenario, clock, key)
+        else:  # the robots run in the workers: these copies never start
+            self._clock = clock = world.clock()
+            world.use_clock(clock)
+            self._transport = world.transport()
         setup: SimulationSetup[Any] = SimulationSetup(
             scenario.config,
             (scenario.world.width, scenario.world.height),
@@ -170,7 +186,9 @@ class ScenarioRun:
         environment.items.subscribe(self._on_item)
         if observe is not None:
             observe(environment)
-        self._swarm = Swarm(mission.robots)
+        if world is not None:
+            world.adopt(environment, mission)
+        self._swarm = Swarm(mission.robots if world is None else ())
         self._started_swarm = False
         self._ended = False
         self._gc = contextlib.ExitStack()
@@ -207,7 +225,9 @@ class ScenarioRun:
         # While the swarm runs, the collector's youngest generation is sized to it.
         self._gc.enter_context(young_generation_for(len(self._swarm)))
         try:
-            starting = asyncio.ensure_future(self._swarm.__aenter__())
+            starting = asyncio.ensure_future(
+                self._swarm.__aenter__() if self._world is None else self._world.start()
+            )
             stopped = asyncio.ensure_future(self._stop.wait())
             try:
                 await asyncio.wait((starting, stopped), return_when=asyncio.FIRST_COMPLETED)
@@ -239,7 +259,7 @@ class ScenarioRun:
             return self._end(RunStatus.INTERRUPTED, None)
         try:
             status, failure = await _until_done(
-                self._swarm,
+                self._swarm.run() if self._world is None else self._world.running(),
                 self._clock,
                 self._scenario.run.max_time,
                 self._scenario.run.trace_interval,
@@ -252,6 +272,8 @@ class ScenarioRun:
         except BaseException:
             self._close_progress(final=False)
             raise
+        if self._world is not None:
+            await self._world.finish()  # the workers stop, and send their counts
         return self._end(status, failure)
 
     def interrupt(self) -> RunResult:
@@ -278,12 +300,14 @@ class ScenarioRun:
         _measure(
             result,
             self._mission,
-            self._swarm,
+            self._message_counts(),
             self.environment,
             self._clock.now(),
             self._events_measured,
         )
         _measure_positions(result, self._mission, self.trace)
+        if self._world is not None:
+            result.extra.update(self._world.stats())
         self._count_faults()
         if self._trace_csv is not None:
             try:
@@ -307,11 +331,13 @@ class ScenarioRun:
     ) -> None:
         """Stops and closes the robots; a layer failure found on the way fails the result."""
         try:
-            if self._started_swarm:
+            if self._started_swarm and self._world is None:
                 await self._swarm.__aexit__(exc_type, exc, tb)
         except LayerError as error:  # a failure that running did not raise
             _failed(self.result, error)
         finally:
+            if self._world is not None:
+                await self._world.close()
             self._gc.close()
             if self._trace_csv is not None and not self._ended:
                 self._trace_csv.discard()  # the run ended by an exception: no trace
@@ -335,6 +361,16 @@ class ScenarioRun:
     def _carrying(self) -> npt.NDArray[np.bool_]:
         """Which robots of the trace hold an item now, in the trace's row order."""
         return np.isin(self._rows, self.environment.items.holders())
+
+    def _message_counts(self) -> tuple[dict[str, dict[str, int]], dict[str, int]]:
+        """Messages by kind and class, and drop reasons: this process's, or the workers'."""
+        if self._world is not None:
+            return self._world.message_counts()
+        errors: dict[str, int] = {}
+        for robot in self._swarm:
+            for reason, n in robot.dropped.items():
+                errors[reason] = errors.get(reason, 0) + n
+        return self._swarm.message_counts(), errors
 
     def _count_faults(self) -> None:
         transport = self._transport
@@ -380,7 +416,7 @@ async def run_scenario(
 
 
 async def _until_done(
-    swarm: Swarm,
+    running: Coroutine[Any, Any, None],
     clock: Clock,
     max_time: float,
     interval: float,
@@ -405,7 +441,7 @@ async def _until_done(
     waits = {
         "complete": asyncio.ensure_future(complete.wait()),
         "timeout": asyncio.ensure_future(clock.sleep_until(max_time)),
-        "swarm": asyncio.ensure_future(swarm.run()),
+        "swarm": asyncio.ensure_future(running),
         "sampling": asyncio.ensure_future(sampling()),
     }
     if stop is not None:
@@ -438,7 +474,7 @@ def _failed(result: RunResult, error: BaseException) -> None:
 def _measure(
     result: RunResult,
     mission: Mission,
-    swarm: Swarm,
+    counts: tuple[dict[str, dict[str, int]], dict[str, int]],
     environment: Environment,
     now: float,
     events: int | None,
@@ -464,13 +500,9 @@ def _measure(
         for robot_id, travelled in environment.distances(now).items()
         if environment.is_mobile(robot_id)
     }
-    counts = swarm.message_counts()
-    result.messages_internal = dict(sorted(counts["internal"].items()))
-    result.messages_external = dict(sorted(counts["external"].items()))
-    errors: dict[str, int] = {}
-    for robot in swarm:
-        for reason, n in robot.dropped.items():
-            errors[reason] = errors.get(reason, 0) + n
+    messages, errors = counts
+    result.messages_internal = dict(sorted(messages["internal"].items()))
+    result.messages_external = dict(sorted(messages["external"].items()))
     result.protocol_errors = dict(sorted(errors.items()))
     if mission.extra is not None:
         result.extra = dict(mission.extra())

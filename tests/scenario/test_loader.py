@@ -123,7 +123,7 @@ def test_app_attribute_after_a_colon(write: WriteScenario) -> None:
         pytest.param(
             'transport = "tcp"',
             "run.transport",
-            'expected one of "udp", "memory", got "tcp"',
+            'expected one of "udp", "memory", "zenoh", got "tcp"',
             id="transport",
         ),
         pytest.param("max_time = -5", "run.max_time", "expected a number > 0, got -5", id="max"),
