@@ -1,0 +1,176 @@
+"""The simulator's seams for runs across processes: motions as numbers, watched; items elsewhere."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+
+import pytest
+
+from cas_async import (
+    ConstantSpeed,
+    Decelerating,
+    Pose,
+    Robot,
+    ScaledClock,
+    SimulationError,
+    Swarm,
+    VirtualClock,
+)
+from cas_async.sim import Environment, Motion, SimulatedHands, SimulatedMiddleware
+from cas_async.sim._authority import ItemAuthority
+from cas_async.transport import MemoryTransport
+from tests.stacks import STACK_MESSAGES, Recorder
+
+
+@pytest.mark.parametrize(
+    "motion",
+    [
+        Motion.standing(Pose(1.5, -2.25, 0.5)),
+        Motion.turn_to(Pose(0, 0, 0), 2.0, turn_rate=math.pi),
+        Motion.straight_to(Pose(1, 2, 0.3), 7.5, -3.25, turn_rate=3.0, profile=ConstantSpeed(2.0)),
+        Motion.straight_to(
+            Pose(0, 0, 0), 30, 40, turn_rate=1.0, profile=Decelerating(3.0, 0.2, 0.5)
+        ),
+    ],
+)
+def test_a_motion_as_numbers_gives_every_pose_back_exactly(motion: Motion) -> None:
+    copy = Motion.from_numbers(motion.to_numbers())
+    assert copy.duration == motion.duration
+    for k in range(0, 101):
+        elapsed = motion.duration * k / 100 if motion.duration else k / 10
+        assert copy.pose_at(elapsed) == motion.pose_at(elapsed)
+        assert copy.travelled(elapsed) == motion.travelled(elapsed)
+
+
+@pytest.mark.parametrize("numbers", [[], [0.0] * 9, [0.0] * 11, [0.0] * 12])
+def test_numbers_that_are_no_motion_are_refused(numbers: list[float]) -> None:
+    with pytest.raises(SimulationError, match="10 numbers and 3 per phase"):
+        Motion.from_numbers(numbers)
+
+
+@pytest.mark.cas_virtual
+async def test_watchers_see_every_motion_and_halt_and_a_replica_follows_exactly() -> None:
+    clock = VirtualClock()
+    world, replica = Environment(), Environment()
+    for env in (world, replica):
+        env.add_robot(1, Pose(0, 0, 0))
+        env.add_robot(2, Pose(5, 5, 0))
+    seen: list[tuple[int, float]] = []
+
+    def publish(robot_id: int, motion: Motion, start: float) -> None:
+        seen.append((robot_id, start))
+        replica.start_motion(robot_id, Motion.from_numbers(motion.to_numbers()), start)
+
+    world.watch_motions(publish)
+    driver = SimulatedMiddleware(
+        world, 1, clock, turn_rate=math.pi, speed_profile=ConstantSpeed(1.0)
+    )
+    moving = asyncio.ensure_future(driver.move_to(10, 0))
+    await clock.sleep(3.0)
+    moving.cancel()  # halted mid-way: the halt is a motion too
+    with pytest.raises(asyncio.CancelledError):
+        await moving
+    assert [robot for robot, _ in seen] == [1, 1]
+    for t in (0.0, 1.0, 2.5, 3.0, 100.0):
+        assert replica.pose_at(1, t) == world.pose_at(1, t)
+    assert replica.within(2, 20.0, 50.0).ids.tolist() == world.within(2, 20.0, 50.0).ids.tolist()
+
+
+class _Recording(ItemAuthority):
+    """An authority in the same process that records what the hands asked."""
+
+    def __init__(self) -> None:
+        self.asked: list[tuple[object, ...]] = []
+
+    async def create_item(self, robot_id: int, t: float) -> int:
+        self.asked.append(("create_item", robot_id, t))
+        return 42
+
+    async def hand_over(
+        self, item: int, giver: int, receiver: int, t: float, *, reach: float
+    ) -> None:
+        self.asked.append(("hand_over", item, giver, receiver, t, reach))
+
+    async def retire_item(self, item: int, robot_id: int, t: float) -> None:
+        self.asked.append(("retire_item", item, robot_id, t))
+
+    async def accept_from(self, receiver: int, giver: int) -> None:
+        self.asked.append(("accept_from", receiver, giver))
+
+    async def refuse_from(self, receiver: int, giver: int) -> None:
+        self.asked.append(("refuse_from", receiver, giver))
+
+    async def held_by(self, robot_id: int) -> tuple[int, ...]:
+        self.asked.append(("held_by", robot_id))
+        return (42,)
+
+
+@pytest.mark.cas_virtual
+async def test_hands_ask_the_item_authority_and_leave_the_local_ledger_alone() -> None:
+    clock = VirtualClock()
+    env = Environment()
+    env.add_robot(1, Pose(0, 0))
+    env.add_robot(2, Pose(0, 0))
+    authority = env.item_authority = _Recording()
+    hands = SimulatedHands(env, 1, clock, reach=0.5)
+    clock.start()
+    await clock.sleep(1.5)
+    assert await hands.create_item() == 42
+    await hands.accept_from(2)
+    await hands.refuse_from(2)
+    await hands.hand_over(42, 2)
+    await hands.retire_item(42)
+    assert await hands.items() == (42,)
+    assert authority.asked == [
+        ("create_item", 1, 1.5),
+        ("accept_from", 1, 2),
+        ("refuse_from", 1, 2),
+        ("hand_over", 42, 1, 2, 1.5, 0.5),
+        ("retire_item", 42, 1, 1.5),
+        ("held_by", 1),
+    ]
+    assert env.items.created == 0
+    assert not env.items.events
+
+
+def test_a_scaled_clock_started_at_a_wall_instant_reads_the_time_since_then() -> None:
+    async def main() -> tuple[float, float]:
+        early, late = ScaledClock(10.0), ScaledClock(10.0)
+        early.start_at_wall(time.time() - 1.0)  # one wall second ago: 10 simulated seconds
+        late.start_at_wall(time.time() + 1.0)
+        return early.now(), late.now()
+
+    early, late = asyncio.run(main())
+    assert 9.0 < early < 12.0
+    assert -11.0 < late < -9.0
+
+
+def test_a_started_scaled_clock_cannot_be_aligned() -> None:
+    async def main() -> None:
+        clock = ScaledClock(2.0)
+        clock.start()
+        with pytest.raises(Exception, match="started already"):
+            clock.start_at_wall(time.time())
+
+    asyncio.run(main())
+
+
+@pytest.mark.cas_virtual
+async def test_a_swarm_opened_can_be_reached_before_it_starts() -> None:
+    transport = MemoryTransport()
+    stacks = {rid: [Recorder(), Recorder()] for rid in (1, 2)}
+    swarm = Swarm(
+        Robot(rid, stack, transport=transport, messages=STACK_MESSAGES)
+        for rid, stack in stacks.items()
+    )
+    await swarm.open()
+    try:
+        assert all(robot.state.name == "OPEN" for robot in swarm)
+        assert all(robot.address == ("memory", robot.robot_id) for robot in swarm)
+        swarm.start()
+        assert all(robot.state.name == "RUNNING" for robot in swarm)
+    finally:
+        await swarm.__aexit__(None, None, None)
+    assert all(robot.state.name == "STOPPED" for robot in swarm)
