@@ -22,8 +22,10 @@ process, when Zenoh's lease expires (about 10 s). Robots that follow membership 
 ``robot_joined``/``robot_left`` (``Layer.knows``, ``on_robot_left``).
 
 The sender of a datagram is the robot named in the key it was published under, and
-only while that robot's token is alive; a datagram from a robot no token speaks for is
-refused as ``unknown_source``, one whose header claims another robot than its key as
+only while that robot's token is alive (and for :data:`LAST_WORDS` seconds after it
+went: a robot's last datagrams may arrive after its token's end, as they come through
+another subscriber); a datagram from a robot no token speaks for is refused as
+``unknown_source``, one whose header claims another robot than its key as
 ``spoofed_sender``. Zenoh itself does not stop a session from publishing under any
 key: on a network you do not control, restrict who may publish with Zenoh's access
 control (by interface, certificate or user) and give the swarm a key
@@ -71,6 +73,8 @@ Mode = Literal["peer", "client", "router"]
 
 _NAMESPACE: Final = re.compile(r"[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*")
 _LOOPBACK_LISTEN: Final = ("tcp/127.0.0.1:0",)
+LAST_WORDS: Final = 2.0
+"""Seconds (of the loop's clock) a robot's datagrams still speak for it after its token went."""
 _REMOTE: Final = 0
 _LOCAL: Final = 1
 _APPEARED: Final = 2
@@ -276,6 +280,10 @@ class ZenohTransport(Transport):
         self._where: dict[RobotId, str] = {}  # every robot with a live token -> its zid
         self._followers: dict[RobotId, ZenohEndpoint] = {}
         self._waiters: list[asyncio.Future[None]] = []  # wait_for(): woken by every join
+        # Robots whose token went, and when (loop time): their last datagrams may come
+        # after the token's DELETE (two subscribers, no order between them) and still
+        # speak for them for a moment.
+        self._departed: dict[RobotId, float] = {}
         self._lock = threading.Lock()  # the session's life vs. a thread opening it
         self.sent = 0
         """Datagrams published to other processes."""
@@ -523,12 +531,23 @@ class ZenohTransport(Transport):
             if endpoint is None:
                 self._drop("no_receiver", key)
                 continue
+            known = sender if sender in where or self._lately_here(sender) else None
             try:
-                endpoint.sink.datagram_received(payload, sender if sender in where else None)
+                endpoint.sink.datagram_received(payload, known)
             except Exception as exc:  # a broken sink must not lose the rest of the batch
                 asyncio.get_running_loop().call_exception_handler(
                     {"message": f"robot {receiver}: sink failed", "exception": exc}
                 )
+
+    def _lately_here(self, robot_id: RobotId) -> bool:
+        """Whether ``robot_id`` left less than :data:`LAST_WORDS` seconds ago."""
+        left = self._departed.get(robot_id)
+        if left is None:
+            return False
+        if asyncio.get_running_loop().time() - left <= LAST_WORDS:
+            return True
+        del self._departed[robot_id]
+        return False
 
     def _token_event(self, key: str, *, appeared: bool) -> None:
         *_, robot, zid = key.rsplit("/", 2)
@@ -547,6 +566,7 @@ class ZenohTransport(Transport):
         if before == zid:
             return
         self._where[robot_id] = zid
+        self._departed.pop(robot_id, None)
         waiters, self._waiters = self._waiters, []
         for waiter in waiters:
             if not waiter.done():
@@ -560,6 +580,8 @@ class ZenohTransport(Transport):
         if self._where.get(robot_id) != zid:  # gone already, or alive in another session
             return
         del self._where[robot_id]
+        with contextlib.suppress(RuntimeError):  # no loop: the session is closing
+            self._departed[robot_id] = asyncio.get_running_loop().time()
         for follower in list(self._followers.values()):
             follower.sink.robot_left(robot_id)
 
