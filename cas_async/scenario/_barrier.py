@@ -154,7 +154,8 @@ class Coordinator:
     Args:
         workers: how many worker participants (ids ``0..workers-1``), besides the world.
         prepare: asks every worker to confirm that nothing changed since it reported
-            (``prepare(round)``); answers come back through :meth:`confirmed`.
+            (``prepare(ticket)``, a number new for every prepare); answers come back
+            through :meth:`confirmed`, naming the ticket they answer.
         grant: tells every worker the new round and the instant granted.
         world: the world's own participant, asked directly.
     """
@@ -171,6 +172,7 @@ class Coordinator:
         self._reports: dict[int, Report] = {}
         self._confirms: set[int] = set()
         self._preparing = False
+        self._ticket = 0  # one per prepare: an answer to an abandoned one counts for nothing
         self.round = 0
         self.world: Participant | None = None
         self.rounds = 0
@@ -187,9 +189,9 @@ class Coordinator:
             self.aborted += 1
         self._check()
 
-    def confirmed(self, ident: int, round_: int, unchanged: bool) -> None:
-        """A participant's answer to ``prepare``."""
-        if not self._preparing or round_ != self.round:
+    def confirmed(self, ident: int, ticket: int, unchanged: bool) -> None:
+        """A participant's answer to the ``prepare`` of ``ticket``."""
+        if not self._preparing or ticket != self._ticket:
             return
         if not unchanged:
             self._preparing = False
@@ -215,7 +217,8 @@ class Coordinator:
                 self._preparing = False
                 self.aborted += 1
                 return
-            self._prepare(self.round)
+            self._ticket += 1
+            self._prepare(self._ticket)
             return
         if self._confirms != self._ids:
             return

@@ -237,7 +237,7 @@ class World:
         if self._scenario.run.virtual:
             coordinator = self._coordinator = Coordinator(
                 self._workers,
-                lambda round_: link.send("all", ["prepare", round_]),
+                lambda ticket: link.send("all", ["prepare", ticket]),
                 lambda round_, until: link.send("all", ["grant", round_, until]),
             )
             participant = Participant(WORLD, self._count, coordinator.report)
@@ -382,9 +382,9 @@ class World:
                     self._coordinator.report(
                         worker, Report(round_, float(deadline), sent, received)
                     )
-            case ["confirm", int(worker), int(round_), bool(unchanged)]:
+            case ["confirm", int(worker), int(ticket), bool(unchanged)]:
                 if self._coordinator is not None:
-                    self._coordinator.confirmed(worker, round_, unchanged)
+                    self._coordinator.confirmed(worker, ticket, unchanged)
             case ["failed", int(worker), str(error)]:
                 self._fail(f"worker {worker} failed: {error}")
             case ["bye", int(worker), dict(internal), dict(external), dict(dropped)]:
@@ -732,11 +732,11 @@ class _Worker:
             case ["go", float(epoch)]:
                 if self._go is not None and not self._go.done():
                     self._go.set_result(epoch)
-            case ["prepare", int(round_)]:
+            case ["prepare", int(ticket)]:
                 participant = self._participant
                 if participant is not None:
                     self._link.send(
-                        "world", ["confirm", self._index, round_, participant.unchanged()]
+                        "world", ["confirm", self._index, ticket, participant.unchanged()]
                     )
             case ["grant", int(round_), until]:
                 if self._participant is not None:
