@@ -10,9 +10,12 @@ it. Keys, under the transport's ``namespace``::
     {namespace}/d/{zid}/{receiver}/{sender}     a datagram for ``receiver``
 
 ``zid`` is the Zenoh id of the session the robot lives in. A process declares one
-subscriber for the datagrams of its own session (``{namespace}/d/{zid}/**``) and one
+subscriber for the datagrams of its own session (``{namespace}/d/{zid}/*/*``) and one
 for the tokens: Zenoh runs every plain callback subscriber on its own OS thread, so
-one per robot would cost a thousand threads for a thousand robots. Callbacks only
+one per robot would cost a thousand threads for a thousand robots. The tokens'
+callback runs on Zenoh's network thread instead (``indirect=False``): a token is then
+queued before any datagram its robot sent after declaring it, which would otherwise
+race it through the datagrams' thread and arrive from nobody. Callbacks only
 append to a queue and wake the event loop once per batch (``call_soon_threadsafe``
 when the queue was empty); the loop then hands each datagram to its robot.
 
@@ -358,7 +361,7 @@ class ZenohTransport(Transport):
             try:
                 self._subscribers.append(
                     session.declare_subscriber(
-                        f"{ns}/d/{self._zid}/**",
+                        f"{ns}/d/{self._zid}/*/*",  # other shapes are no datagram keys
                         lambda sample: inbox.put(
                             (_REMOTE, str(sample.key_expr), sample.payload.to_bytes())
                         ),
@@ -440,6 +443,8 @@ class ZenohTransport(Transport):
         await self._start()
         elsewhere = self._where.get(robot_id)
         if elsewhere is not None and elsewhere != self._zid:
+            if not self._local and not self._kept:
+                self._close_session()  # opened for this robot: it must not keep the process
             raise ConfigurationError(
                 f"robot {robot_id} is already on the Zenoh swarm {self.namespace!r} "
                 f"(session {elsewhere})"
@@ -555,6 +560,8 @@ class ZenohTransport(Transport):
             robot_id = int(robot)
         except ValueError:
             self._drop("bad_key", key)
+            return
+        if zid == self._zid:  # the echo of our own robots: open() and detach() told already
             return
         if appeared:
             self._joined(robot_id, zid)
