@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import os
 import secrets
 import socket
@@ -68,6 +69,8 @@ __all__ = ["LOBBY", "World", "WorkerLost", "run_worker", "share_of"]
 LOBBY: Final = "cas_async/lobby"
 SETUP_LIMIT: Final = 60.0
 """Wall seconds the world waits for its workers to join and be ready."""
+BYE_GRACE: Final = 1.0
+"""Wall seconds a stopping worker's counts may arrive after its token went."""
 STOP_LIMIT: Final = 10.0
 """Wall seconds the world waits for the workers' last counts."""
 
@@ -170,6 +173,7 @@ class World:
         self._link: Link | None = None
         self._lobby: Link | None = None
         self._tokens: Any = None
+        self._alive: Any = None  # the world's token: workers stop when it goes
         self._children: list[asyncio.subprocess.Process] = []
         self._joined: dict[str, int] = {}  # lobby nonce -> worker index
         self._ready: set[int] = set()
@@ -226,6 +230,7 @@ class World:
         self._link = link = Link(self._session, self.namespace, self._key, self._on_message)
         link.listen("world")
         link.listen("motion")
+        self._alive = self._session.liveliness().declare_token(f"{self.namespace}/world")
         self._tokens = self._session.liveliness().declare_subscriber(
             f"{self.namespace}/worker/*",
             lambda sample: self._worker_token(str(sample.key_expr), sample.kind),
@@ -317,12 +322,16 @@ class World:
     async def close(self) -> None:
         """Closes the channel and the router; every child process is gone afterwards."""
         self._done = True
+        if self._link is not None:
+            with contextlib.suppress(Exception):  # ended early (a lost worker): the rest stop too
+                self._link.send("all", ["stop"])
         for link in (self._link, self._lobby):
             if link is not None:
                 link.close()
-        if self._tokens is not None:
-            with contextlib.suppress(Exception):
-                self._tokens.undeclare()
+        for declared in (self._tokens, self._alive):
+            if declared is not None:
+                with contextlib.suppress(Exception):
+                    declared.undeclare()
         for child in self._children:
             with contextlib.suppress(ProcessLookupError, WorkerLost):
                 await bounded(child.wait(), 5.0, "a worker to exit")
@@ -444,8 +453,16 @@ class World:
         with contextlib.suppress(RuntimeError):
             loop.call_soon_threadsafe(self._worker_gone, worker)
 
-    def _worker_gone(self, worker: int) -> None:
+    def _worker_gone(self, worker: int, *, waited: bool = False) -> None:
         if worker in self._gone:
+            return
+        if self._done and not waited:
+            # Stopping: its token may go before its last counts arrive (two
+            # subscriptions, in no order): give the 'bye' a moment of wall time.
+            later = functools.partial(self._worker_gone, worker, waited=True)
+            timer = threading.Timer(BYE_GRACE, _call_soon, (asyncio.get_running_loop(), later))
+            timer.daemon = True
+            timer.start()
             return
         self._gone.add(worker)
         self._check_stopped()
@@ -461,6 +478,12 @@ class World:
         for future in (self._lost, self._setup):
             if future is not None and not future.done():
                 future.set_exception(WorkerLost(error))
+
+
+def _call_soon(loop: asyncio.AbstractEventLoop, callback: Any) -> None:
+    """From another thread: ``callback`` on ``loop``, unless the loop has closed."""
+    with contextlib.suppress(RuntimeError):
+        loop.call_soon_threadsafe(callback)
 
 
 def _with_free_port(endpoint: str) -> str:
@@ -627,6 +650,7 @@ class _Worker:
         self._environment = Environment()
         self._own: set[RobotId] = set()
         self._participant: Participant | None = None
+        self._world_lost = False
 
     def _count(self) -> tuple[int, int]:
         return self._counts.sent + self._zenoh.sent, self._counts.received + self._zenoh.received
@@ -650,7 +674,7 @@ class _Worker:
         self._own = {robot.robot_id for robot in share}
         await self._zenoh.start()
         link = self._link = Link(self._zenoh.session, self._namespace, self._key, self._on_message)
-        token = None
+        token = world_watch = None
         swarm = Swarm(share)
         failed: str | None = None
         try:
@@ -662,6 +686,11 @@ class _Worker:
             self._environment.watch_motions(self._publish_motion)
             token = self._zenoh.session.liveliness().declare_token(
                 f"{self._namespace}/worker/{self._index}"
+            )
+            world_watch = self._zenoh.session.liveliness().declare_subscriber(
+                f"{self._namespace}/world",
+                functools.partial(self._world_token, loop),
+                history=True,
             )
             await swarm.open()
             everyone = [robot.robot_id for robot in mission.robots]
@@ -701,11 +730,30 @@ class _Worker:
             link.send(
                 "world", ["bye", self._index, counts["internal"], counts["external"], dropped]
             )
-            if token is not None:
-                token.undeclare()
+            for declared in (token, world_watch):
+                if declared is not None:
+                    with contextlib.suppress(Exception):
+                        declared.undeclare()
             link.close()
             self._zenoh.close()
+        if failed is None and self._world_lost:
+            failed = "the world is gone"
+        if failed is not None:
+            print(f"worker {self._index}: {failed}", file=sys.stderr)
         return 1 if failed is not None else 0
+
+    def _world_token(self, loop: asyncio.AbstractEventLoop, sample: Any) -> None:
+        """On a Zenoh thread: the world's token went: its run is over, this worker stops."""
+        if str(sample.kind) == "SampleKind.DELETE":
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(self._world_gone)
+
+    def _world_gone(self) -> None:
+        self._world_lost = True
+        if self._stop is not None and not self._stop.done():
+            self._stop.set_result(None)
+        if self._go is not None and not self._go.done():
+            self._go.set_exception(WorkerLost("the world is gone before the run started"))
 
     def _report(self, ident: int, report: Report) -> None:
         self._link.send(

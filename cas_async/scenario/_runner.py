@@ -452,7 +452,8 @@ async def _until_done(
         for task in waits.values():
             task.cancel()
         for task in waits.values():
-            with contextlib.suppress(asyncio.CancelledError):
+            # A task's own failure is read below, from the task: not raised here.
+            with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
     if waits["complete"] in done:
         return RunStatus.COMPLETED, None
