@@ -1,4 +1,4 @@
-"""The two-process and mango benchmarks run, report well-formed rows, and leave no child.
+"""The two-process, mango and Zenoh benchmarks run, report well-formed rows, leave no child.
 
 Smoke tests only: tiny sizes, the stdlib loop, one run per side. The figures are not
 judged (speed targets live in the benchmarks); a run whose receiver did not get
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks import bench_mango
+from benchmarks import bench_mango, bench_zenoh
 from benchmarks._common import Bench, run_bench
 from benchmarks.bench_processes import BENCHES as PROCESS_BENCHES
 from benchmarks.bench_processes import peer_process
@@ -55,13 +55,13 @@ def smoke(bench: Bench) -> dict[str, object]:
     return row
 
 
-def check_row(row: dict[str, object], name: str) -> None:
+def check_row(row: dict[str, object], name: str, unit: str = "msg/s") -> None:
     for field, kind in FIELDS.items():
         assert isinstance(row[field], kind), f"{field}: {row[field]!r} is not a {kind}"
     assert (row["benchmark"], row["loop"], row["unit"], row["size"]) == (
         name,
         "stdlib",
-        "msg/s",
+        unit,
         SIZE,
     )
     assert row["framework"] > 0  # type: ignore[operator]
@@ -90,6 +90,31 @@ def test_the_mango_benchmarks_run(name: str) -> None:
     pytest.importorskip("mango")
     (bench,) = [b for b in bench_mango.BENCHES if b.name == name]
     check_row(smoke(bench), name)
+
+
+ZENOH_UNITS = {
+    "zenoh_throughput": "msg/s",
+    "zenoh_rtt": "us",
+    "zenoh_processes": "msg/s",
+    "zenoh_processes_rtt": "us",
+}
+
+
+def test_the_zenoh_benchmarks_are_listed_when_zenoh_imports() -> None:
+    names = [b.name for b in bench_zenoh.BENCHES]
+    if bench_zenoh.available():
+        assert names == list(ZENOH_UNITS)
+        assert bench_zenoh.skip_message() == ""
+    else:
+        assert names == []
+        assert "pip install" in bench_zenoh.skip_message()
+
+
+@pytest.mark.parametrize("name", list(ZENOH_UNITS))
+def test_the_zenoh_benchmarks_run(name: str) -> None:
+    pytest.importorskip("zenoh")
+    (bench,) = [b for b in bench_zenoh.BENCHES if b.name == name]
+    check_row(smoke(bench), name, ZENOH_UNITS[name])
 
 
 async def test_a_peer_that_does_not_start_is_reaped() -> None:

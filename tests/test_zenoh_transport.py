@@ -698,18 +698,21 @@ async def test_a_refused_robot_leaves_no_session_open() -> None:
     ns = namespace()
     async with listener(ns) as (home, endpoint):
         first = await home.open(1, Sink())
+        refused = 0
         try:
             for _ in range(6):
                 away = ZenohTransport(namespace=ns, connect=[endpoint])
                 try:
                     endpoint_1 = await away.open(1, Sink())
                 except ConfigurationError:
+                    refused += 1
                     assert away.session is None
-                else:  # the other robot 1 was not known yet: the race cannot be won here
+                else:  # robot 1's token came too late to refuse this one: it happens
                     endpoint_1.close()
                     assert away.session is None
         finally:
             first.close()
+        assert refused  # usually all six: the session learns the tokens while it opens
 
 
 async def test_datagrams_under_malformed_keys_are_counted_and_harm_nothing() -> None:
@@ -768,8 +771,9 @@ async def test_the_last_robot_closes_the_session_and_the_next_opens_another() ->
         counts.append(os_threads())
     assert len(set(zids)) == 3
     assert "" not in zids
-    # Zenoh keeps a runtime for the process, but a session leaves no thread behind.
-    assert counts[-1] <= counts[0], counts
+    # Zenoh keeps a runtime for the process (one thread of slack for its pools), but
+    # sessions leave no threads behind: a leak would grow by a thread or more per round.
+    assert counts[-1] <= counts[0] + 1, counts
 
 
 async def test_a_started_transport_keeps_its_session_until_closed() -> None:
