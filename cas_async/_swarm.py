@@ -101,6 +101,14 @@ class Swarm:
                     into[name] = into.get(name, 0) + n
         return total
 
+    def drop_counts(self) -> dict[str, int]:
+        """Every robot's :attr:`Robot.dropped`, summed by reason."""
+        total: dict[str, int] = {}
+        for robot in self:
+            for reason, n in robot.dropped.items():
+                total[reason] = total.get(reason, 0) + n
+        return total
+
     # -- lifecycle ---------------------------------------------------------------------
 
     async def __aenter__(self) -> Swarm:

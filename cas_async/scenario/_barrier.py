@@ -73,7 +73,6 @@ class Participant:
         self._report = report
         self.round = 0
         self.rounds = 0  # grants received: the barrier's rounds in this process
-        self.active = False
         self._last: Report | None = None
         self._grant: float | None = None
         self.over = False
@@ -125,7 +124,6 @@ class BarrierLoop(VirtualTimeLoop):
     def activate(self, participant: Participant) -> None:
         """Time moves from now on, as the barrier grants it."""
         self.participant = participant
-        participant.active = True
 
     def when_idle(
         self, timeout: float | None, selector: selectors.BaseSelector

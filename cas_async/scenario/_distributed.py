@@ -44,9 +44,7 @@ from collections.abc import Awaitable, Sequence
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
-import numpy as np
-
-from .._clock import Clock, ScaledClock, VirtualClock
+from .._clock import Clock, ScaledClock
 from .._errors import ConfigurationError, SimulationError, UnknownRobotError
 from .._robot import Robot
 from .._swarm import Swarm
@@ -59,7 +57,7 @@ from ..transport._authenticated import AuthenticatedTransport
 from ..transport._base import Transport
 from ..transport._memory import MemoryTransport
 from ..transport._zenoh import ZenohTransport, import_zenoh, loopback_config
-from ._app import Mission, SimulationSetup
+from ._app import Mission
 from ._barrier import WORLD, BarrierLoop, Coordinator, Participant, Report
 from ._link import Link
 from ._loader import Scenario, scenario_from_data
@@ -187,15 +185,11 @@ class World:
         self._shares: list[list[RobotId]] = []
         self._coordinator: Coordinator | None = None
         self.participant: Participant | None = None
+        self._scenario_clock: ScaledClock | None = None
         self.endpoint = ""
         """Where the router listens, once started."""
 
     # -- what ScenarioRun asks -------------------------------------------------------
-
-    def clock(self) -> Clock:
-        """The run's clock: virtual (granted by the barrier) or scaled."""
-        run = self._scenario.run
-        return VirtualClock() if run.virtual else ScaledClock(run.time_factor)
 
     def transport(self) -> Transport:
         """What the world's own copies of the robots are built with: they never start."""
@@ -257,10 +251,8 @@ class World:
             if clock is not None:
                 clock.start_at_wall(epoch)
 
-    _scenario_clock: ScaledClock | None = None
-
     def use_clock(self, clock: Clock) -> None:
-        """The clock ScenarioRun made from :meth:`clock`, aligned at the start."""
+        """The run's clock: a scaled one is aligned with the workers' at the start."""
         if isinstance(clock, ScaledClock):
             self._scenario_clock = clock
 
@@ -447,7 +439,7 @@ class World:
     def _worker_token(self, key: str, kind: Any) -> None:
         """On a Zenoh thread: a worker's token came or went."""
         loop = self._lost.get_loop() if self._lost is not None else None
-        if loop is None or str(kind) != "SampleKind.DELETE":
+        if loop is None or kind != import_zenoh().SampleKind.DELETE:
             return
         worker = int(key.rsplit("/", 1)[1])
         with contextlib.suppress(RuntimeError):
@@ -658,18 +650,9 @@ class _Worker:
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
         self._go, self._stop = loop.create_future(), loop.create_future()
-        scenario, run = self._scenario, self._scenario.run
-        clock: Clock = VirtualClock() if run.virtual else ScaledClock(run.time_factor)
-        setup: SimulationSetup[Any] = SimulationSetup(
-            scenario.config,
-            (scenario.world.width, scenario.world.height),
-            self._environment,
-            clock,
-            self._transport,
-            np.random.default_rng(run.seed),
-            run.restart,
-        )
-        mission = scenario.app.build(setup)
+        scenario = self._scenario
+        clock = scenario.clock()
+        mission = scenario.app.build(scenario.setup(self._environment, clock, self._transport))
         share = share_of(mission.robots, self._index, self._workers)
         self._own = {robot.robot_id for robot in share}
         await self._zenoh.start()
@@ -723,12 +706,9 @@ class _Worker:
             if failed is not None:
                 link.send("world", ["failed", self._index, failed])
             counts = swarm.message_counts()
-            dropped: dict[str, int] = {}
-            for robot in swarm:
-                for reason, n in robot.dropped.items():
-                    dropped[reason] = dropped.get(reason, 0) + n
             link.send(
-                "world", ["bye", self._index, counts["internal"], counts["external"], dropped]
+                "world",
+                ["bye", self._index, counts["internal"], counts["external"], swarm.drop_counts()],
             )
             for declared in (token, world_watch):
                 if declared is not None:
@@ -744,7 +724,7 @@ class _Worker:
 
     def _world_token(self, loop: asyncio.AbstractEventLoop, sample: Any) -> None:
         """On a Zenoh thread: the world's token went: its run is over, this worker stops."""
-        if str(sample.kind) == "SampleKind.DELETE":
+        if sample.kind == import_zenoh().SampleKind.DELETE:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(self._world_gone)
 

@@ -9,7 +9,7 @@ from another run applies.) Messages that fail the check, or do not parse, are
 dropped and counted in :attr:`Link.dropped`.
 
 Like the Zenoh transport, a link has one subscriber per key it listens to, and
-hands what arrives to the event loop in batches.
+hands what arrives to the event loop in batches (the transport's :class:`ThreadInbox`).
 """
 
 from __future__ import annotations
@@ -18,13 +18,13 @@ import asyncio
 import contextlib
 import hashlib
 import hmac
-from collections import deque
 from collections.abc import Callable
 from typing import Any, Final
 
 import msgpack
 
 from .._swarm_key import SwarmKey
+from ..transport._zenoh import ThreadInbox
 
 __all__ = ["Link"]
 
@@ -56,9 +56,9 @@ class Link:
         self._prefix = f"{namespace}/ctl/"
         self._secret = None if key is None else key.secret
         self._handle = handle
-        self._loop = asyncio.get_running_loop()
-        self._queue: deque[tuple[str, bytes]] = deque()
-        self._scheduled = False
+        self._inbox: ThreadInbox[tuple[str, bytes]] = ThreadInbox(
+            asyncio.get_running_loop(), self._drain
+        )
         self._subscribers: list[Any] = []
         self._block = zenoh.CongestionControl.BLOCK
         self.dropped = 0
@@ -69,7 +69,7 @@ class Link:
         self._subscribers.append(
             self._session.declare_subscriber(
                 self._prefix + suffix,
-                lambda sample: self._arrived(str(sample.key_expr), sample.payload.to_bytes()),
+                lambda sample: self._inbox.put((str(sample.key_expr), sample.payload.to_bytes())),
             )
         )
 
@@ -88,19 +88,8 @@ class Link:
             with contextlib.suppress(Exception):
                 subscriber.undeclare()
 
-    def _arrived(self, key: str, payload: bytes) -> None:
-        """On a Zenoh thread: queue, and wake the loop once per batch."""
-        self._queue.append((key, payload))
-        if not self._scheduled:
-            self._scheduled = True
-            with contextlib.suppress(RuntimeError):  # the loop closed
-                self._loop.call_soon_threadsafe(self._drain)
-
-    def _drain(self) -> None:
-        self._scheduled = False
-        queue = self._queue
-        for _ in range(len(queue)):
-            key, payload = queue.popleft()
+    def _drain(self, entries: list[tuple[str, bytes]]) -> None:
+        for key, payload in entries:
             if self._secret is not None:
                 body, tag = payload[:-_TAG], payload[-_TAG:]
                 if len(payload) < _TAG or not hmac.compare_digest(

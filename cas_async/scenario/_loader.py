@@ -47,9 +47,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, Literal, cast
 
+import numpy as np
+
+from .._clock import Clock, ScaledClock, VirtualClock
 from .._supervision import RestartPolicy
+from ..sim._environment import Environment
+from ..transport._base import Transport
 from ..transport._faulty import Faults
-from ._app import SimulationApp
+from ._app import SimulationApp, SimulationSetup
 from ._capacity import Capacity, capacity_problems
 from ._config import ScenarioError, from_toml, setting, show
 
@@ -197,6 +202,24 @@ class Scenario:
     config: Any
     data: dict[str, Any]
     faults: FaultsConfig = FaultsConfig()
+
+    def clock(self) -> Clock:
+        """A new clock for a run: virtual, or scaled by ``run.time_factor``."""
+        return VirtualClock() if self.run.virtual else ScaledClock(self.run.time_factor)
+
+    def setup(
+        self, environment: Environment, clock: Clock, transport: Transport
+    ) -> SimulationSetup[Any]:
+        """What the app builds with: this scenario's settings, seed and restart policy."""
+        return SimulationSetup(
+            self.config,
+            (self.world.width, self.world.height),
+            environment,
+            clock,
+            transport,
+            np.random.default_rng(self.run.seed),
+            self.run.restart,
+        )
 
 
 def load_scenario(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> Scenario:

@@ -25,7 +25,7 @@ from typing import Any, TextIO, final
 import numpy as np
 import numpy.typing as npt
 
-from .._clock import Clock, ScaledClock, VirtualClock
+from .._clock import Clock
 from .._errors import ConfigurationError, LayerError
 from .._swarm import Swarm
 from .._swarm_key import SwarmKey
@@ -37,7 +37,7 @@ from ..transport._faulty import FaultyTransport
 from ..transport._memory import MemoryTransport
 from ..transport._udp import UdpTransport
 from ..transport._zenoh import ZenohTransport
-from ._app import Mission, SimulationSetup
+from ._app import Mission
 from ._distributed import World
 from ._gc_policy import young_generation_for
 from ._loader import Scenario
@@ -78,11 +78,6 @@ def _transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transp
         seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
         transport = FaultyTransport(transport, faults, seed=seed, clock=clock)
     return transport if key is None else AuthenticatedTransport(transport, key)
-
-
-def _clock(scenario: Scenario) -> Clock:
-    run = scenario.run
-    return VirtualClock() if run.virtual else ScaledClock(run.time_factor)
 
 
 @final
@@ -143,23 +138,15 @@ class ScenarioRun:
         self._stop = asyncio.Event() if stop is None else stop  # interrupt() sets it too
         run = scenario.run
         self.environment = environment = Environment()
+        self._clock = clock = scenario.clock()
         if world is None:
-            self._clock = clock = _clock(scenario)
             self._transport = _transport(scenario, clock, key)
         else:  # the robots run in the workers: these copies never start
-            self._clock = clock = world.clock()
             world.use_clock(clock)
             self._transport = world.transport()
-        setup: SimulationSetup[Any] = SimulationSetup(
-            scenario.config,
-            (scenario.world.width, scenario.world.height),
-            environment,
-            clock,
-            self._transport,
-            np.random.default_rng(run.seed),
-            run.restart,
+        self._mission = mission = scenario.app.build(
+            scenario.setup(environment, clock, self._transport)
         )
-        self._mission = mission = scenario.app.build(setup)
         self._progress = None
         if progress_to is not None:
             self._progress = Progress(
@@ -366,11 +353,7 @@ class ScenarioRun:
         """Messages by kind and class, and drop reasons: this process's, or the workers'."""
         if self._world is not None:
             return self._world.message_counts()
-        errors: dict[str, int] = {}
-        for robot in self._swarm:
-            for reason, n in robot.dropped.items():
-                errors[reason] = errors.get(reason, 0) + n
-        return self._swarm.message_counts(), errors
+        return self._swarm.message_counts(), self._swarm.drop_counts()
 
     def _count_faults(self) -> None:
         transport = self._transport

@@ -58,8 +58,8 @@ import re
 import threading
 import warnings
 from collections import deque
-from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING, Any, Final, Literal, final
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Final, Generic, Literal, TypeVar, final
 
 from .._codec import DEFAULT_MAX_DATAGRAM
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
@@ -70,7 +70,7 @@ from ._udp import InsecureBindWarning
 if TYPE_CHECKING:
     import zenoh
 
-__all__ = ["ZenohTransport", "import_zenoh", "loopback_config"]
+__all__ = ["ThreadInbox", "ZenohTransport", "import_zenoh", "loopback_config"]
 
 Mode = Literal["peer", "client", "router"]
 
@@ -83,6 +83,7 @@ _LOCAL: Final = 1
 _APPEARED: Final = 2
 _GONE: Final = 3
 _Entry = tuple[int, str, bytes]
+E = TypeVar("E")
 
 
 def import_zenoh() -> Any:
@@ -128,23 +129,25 @@ def _beyond_loopback(endpoint: str) -> bool:
         return host != "localhost"
 
 
-class _Inbox:
+class ThreadInbox(Generic[E]):
     """What Zenoh's threads hand to the event loop: one queue, one wake-up per batch.
 
-    Entries are ``(kind, key, payload)``: :data:`_REMOTE` (a datagram from another
-    process, under its key), :data:`_LOCAL` (from this process; the key is
-    ``receiver/sender``), :data:`_APPEARED` or :data:`_GONE` (a liveliness token).
+    ``drain`` is called on the loop with every entry queued since the last pass,
+    in order. The transport's entries are ``(kind, key, payload)``: :data:`_REMOTE`
+    (a datagram from another process, under its key), :data:`_LOCAL` (from this
+    process; the key is ``receiver/sender``), :data:`_APPEARED` or :data:`_GONE`
+    (a liveliness token). The runtime's control channel uses one too.
     """
 
     __slots__ = ("_drain", "_loop", "_queue", "_scheduled")
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, drain: Any) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop, drain: Callable[[list[E]], None]) -> None:
         self._loop = loop
         self._drain = drain
-        self._queue: deque[_Entry] = deque()
+        self._queue: deque[E] = deque()
         self._scheduled = False
 
-    def put(self, entry: _Entry) -> None:
+    def put(self, entry: E) -> None:
         """Called on a Zenoh thread (or the loop's): queues ``entry``, wakes the loop once."""
         self._queue.append(entry)
         if not self._scheduled:
@@ -276,7 +279,7 @@ class ZenohTransport(Transport):
         self._opening: asyncio.Future[Any] | None = None
         self._kept = False  # opened by start(): stays open until close()
         self._subscribers: list[Any] = []
-        self._inbox: _Inbox | None = None
+        self._inbox: ThreadInbox[_Entry] | None = None
         self._zid = ""
         self._put_options: dict[str, Any] = {}
         self._local: dict[RobotId, ZenohEndpoint] = {}
@@ -355,7 +358,7 @@ class ZenohTransport(Transport):
         with self._lock:
             self._session = session
             self._zid = str(session.zid())
-            self._inbox = inbox = _Inbox(loop, self._drain)
+            self._inbox = inbox = ThreadInbox(loop, self._drain)
             self._put_options = {"congestion_control": zenoh.CongestionControl.BLOCK}
             ns = self.namespace
             try:
