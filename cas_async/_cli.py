@@ -221,7 +221,7 @@ def _write_figures(scenario_run: ScenarioRun, scenario: Scenario, out: Path) -> 
     from .scenario._plots import write_plots  # matplotlib is imported only here
 
     result = scenario_run.result
-    return write_plots(
+    paths = write_plots(
         scenario_run.trace,
         result.groups,
         (scenario.world.width, scenario.world.height),
@@ -232,7 +232,9 @@ def _write_figures(scenario_run: ScenarioRun, scenario: Scenario, out: Path) -> 
         delivery_times=result.delivery_times,
         series=result.series,
         item_name=result.item_name,
+        verb=result.verb,
     )
+    return paths + scenario_run.objective.figures(scenario_run.trace, out)
 
 
 def _made(out: Path, stderr: TextIO) -> bool:
@@ -486,7 +488,7 @@ def _not_built(scenario: Scenario, wall_time: float) -> RunResult:
     return RunResult(
         scenario=str(scenario.path),
         app=scenario.app.name,
-        item_name=scenario.app.item_name,
+        item_name=getattr(scenario.app, "item_name", "item"),
         seed=scenario.run.seed,
         status=RunStatus.INTERRUPTED,
         wall_time=wall_time,

@@ -4,7 +4,10 @@
   ``setting()`` declares a key's default, bounds and doc.
 * :mod:`.loader`: a scenario file end to end (``app``, ``[run]``, ``[world]``, the app's
   sections, ``--set`` overrides).
-* :mod:`.app`: the contract an application implements (:class:`SimulationApp`).
+* :mod:`.app`: the contract an application implements (:class:`SimulationApp`), and
+  the levels of its stack a scenario may replace (:class:`LayerSlot`).
+* :mod:`.objective`: what a mission is for (:class:`Objective`): its end, progress,
+  checks and results; :class:`Items` retires items of the Environment's ledger.
 * :mod:`.runner`: one run as a coroutine, or step by step (:class:`ScenarioRun`);
   :mod:`.results`: what it measured.
 * :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
@@ -14,7 +17,7 @@
   per point and metric (:class:`SweepOutcome`, :func:`sweep_table`).
 """
 
-from ._app import Measure, Mission, SimulationApp, SimulationSetup
+from ._app import LayerSlot, Measure, Mission, SimulationApp, SimulationSetup
 from ._config import ScenarioError, from_toml, setting
 from ._loader import (
     FaultsConfig,
@@ -25,6 +28,7 @@ from ._loader import (
     load_scenario,
     parse_override,
 )
+from ._objective import Items, Objective, Tally, Watch
 from ._plots import write_plots
 from ._progress import Progress
 from ._report import results_dict, statistics, summary_table, write_results
@@ -38,9 +42,12 @@ from ._trace import Trace, TraceCsv
 
 __all__ = [
     "FaultsConfig",
+    "Items",
+    "LayerSlot",
     "Measure",
     "MetricStats",
     "Mission",
+    "Objective",
     "Progress",
     "RunConfig",
     "RunResult",
@@ -54,8 +61,10 @@ __all__ = [
     "SweepOutcome",
     "SweepPlan",
     "SweepRun",
+    "Tally",
     "Trace",
     "TraceCsv",
+    "Watch",
     "WorldConfig",
     "apply_overrides",
     "check_key",

@@ -6,27 +6,39 @@ The runner owns everything generic (loading and validating the file, the clock,
 the transport, the Environment, progress, Ctrl-C, results and plots); the
 application owns its own configuration sections and builds the robots.
 
-Progress is measured through the Environment's item ledger: the application
-creates, hands over and retires items from its robotic layers, and the mission
-is complete when ``Mission.target`` items have been retired (delivered).
+What a mission is for is its :class:`~cas_async.scenario.Objective`: when it is
+done, what the progress line shows, what is checked at every sample and what the
+results hold. The ready-made one, :class:`~cas_async.scenario.Items`, counts the
+Environment's items: the application creates, hands over and retires them from
+its robotic layers, and the mission is complete when ``target`` items have been
+retired (delivered). A mission that only gives ``Mission(robots, target)`` gets it.
+
+An application may name the levels of its stack (``stack``: one
+:class:`LayerSlot` per level, top first). A scenario file can then replace any of
+them by a class of its own (``[layers] coordination = "my_package.MyCoordination"``),
+which the loader checks before anything starts, and the app builds each level
+with ``setup.layer(SLOT)``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Generic, Protocol, TypeAlias, TypeVar
+from typing import Any, Generic, Protocol, TypeAlias, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from .._clock import Clock
+from .._layer import Layer
+from .._message import Message
 from .._robot import Robot
 from .._supervision import RestartPolicy
 from ..sim._environment import Environment
 from ..transport._base import Transport
+from ._objective import Objective
 
-__all__ = ["Measure", "Mission", "SimulationApp", "SimulationSetup"]
+__all__ = ["LayerSlot", "Measure", "Mission", "SimulationApp", "SimulationSetup"]
 
 Measure: TypeAlias = Callable[[Sequence[int], npt.NDArray[np.float64]], float]
 """A number the application reads off the robots' positions: ``measure(ids, xy)``.
@@ -37,6 +49,33 @@ evaluates it after the run on every sample and exchange snapshot of the trace.
 
 C = TypeVar("C")
 """An application's configuration type (its ``config_type``)."""
+L = TypeVar("L", bound=Layer)
+
+
+@dataclass(frozen=True, slots=True)
+class LayerSlot(Generic[L]):
+    """One level of an application's stack, by name: what a scenario's ``[layers]`` may replace.
+
+    Attributes:
+        name: the level's key in ``[layers]`` (``"coordination"``); its index in
+            the stack (``2``) names it too.
+        base: the class a replacement must subclass: the application builds the
+            level as it builds ``base`` (same constructor, same role).
+        default: the class built when the scenario replaces nothing.
+    """
+
+    name: str
+    base: type[L]
+    default: type[L]
+
+    def __post_init__(self) -> None:
+        if not self.name.isidentifier():
+            raise ValueError(f"LayerSlot: name must be an identifier, got {self.name!r}")
+        if not issubclass(self.default, self.base):
+            raise ValueError(
+                f"LayerSlot {self.name!r}: default {self.default.__qualname__} "
+                f"is not a subclass of base {self.base.__qualname__}"
+            )
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,6 +92,9 @@ class SimulationSetup(Generic[C]):
             for every random choice, so a seed reproduces a run.
         restart: the restart policy for every robot (``Robot(restart=...)``), from
             ``[run] restarts``; ``None``: a layer that raises fails the run.
+        layers: the classes the scenario's ``[layers]`` put in place of the
+            app's own, by slot name (checked: each subclasses its slot's base);
+            read them with :meth:`layer`.
     """
 
     config: C
@@ -62,15 +104,30 @@ class SimulationSetup(Generic[C]):
     transport: Transport
     rng: np.random.Generator
     restart: RestartPolicy | None = None
+    layers: Mapping[str, type[Layer]] = field(default_factory=dict)
+
+    def layer(self, slot: LayerSlot[L], default: type[L] | None = None) -> type[L]:
+        """The class to build ``slot``'s level with: the scenario's, else ``default`` or the slot's.
+
+        ``default`` is for an app whose own choice depends on its configuration
+        (the Fire Brigade's ``strategy.name``); a scenario's ``[layers]`` wins over it.
+        """
+        chosen = self.layers.get(slot.name)
+        if chosen is not None:
+            return cast(type[L], chosen)  # the loader checked it subclasses slot.base
+        return slot.default if default is None else default
 
 
 @dataclass(slots=True)
 class Mission:
     """The robots an application built, and what counts as done.
 
+    Give either ``target`` (the mission retires that many items: :class:`Items`)
+    or an ``objective`` of the application's own.
+
     Attributes:
         robots: every robot, each already added to the Environment.
-        target: items to retire for the mission to be complete.
+        target: items to retire for the mission to be complete (an item mission).
         groups: robot ids by label, in the order to show them (e.g. ``"Generator"``).
         extra: returns application-specific figures for the results; called once,
             at the end of the run.
@@ -81,14 +138,27 @@ class Mission:
         snapshot_exchanges: exchange counts the figures show robots at, where the
             run reached them (e.g. the counts of a paper's figures); empty: six
             counts spread over the run.
+        objective: what the mission is for, when it is not retiring ``target``
+            items: its end, its progress, its checks and its results.
+
+    Raises:
+        ValueError: neither or both of ``target`` and ``objective`` were given.
     """
 
     robots: Sequence[Robot]
-    target: int
+    target: int | None = None
     groups: dict[str, list[int]] = field(default_factory=dict)
     extra: Callable[[], dict[str, float | int | str]] | None = None
     measures: Mapping[str, Measure] = field(default_factory=dict)
     snapshot_exchanges: Sequence[int] = ()
+    objective: Objective | None = None
+
+    def __post_init__(self) -> None:
+        if (self.target is None) == (self.objective is None):
+            raise ValueError(
+                "Mission: give target (items to retire) or an objective, "
+                f"not {'both' if self.objective is not None else 'neither'}"
+            )
 
 
 class SimulationApp(Protocol[C]):
@@ -96,14 +166,21 @@ class SimulationApp(Protocol[C]):
 
     Attributes:
         name: shown in the summary, e.g. ``"Fire Brigade"``.
-        item_name: what its items are, singular, e.g. ``"bucket"``.
+        item_name: what its items are, singular, e.g. ``"bucket"`` (for a
+            mission given as a ``target``; optional otherwise).
         config_type: a frozen dataclass: the scenario file's keys other than
-            ``app``, ``run`` and ``world`` are validated into it.
+            ``app``, ``run``, ``world``, ``faults`` and ``layers`` are validated into it.
+        stack: optional: every level of the robots' stack, top first, by name,
+            so that a scenario's ``[layers]`` may replace any of them.
+        messages: optional (needed with ``stack``): the stack's message classes,
+            which a replacement layer may not add to.
     """
 
     name: str
     item_name: str
     config_type: type[C]
+    stack: Sequence[LayerSlot[Any]]
+    messages: Sequence[type[Message]]
 
     def robots(self, config: C) -> Mapping[str, int]:
         """How many robots ``config`` builds, by the key that sets each number.

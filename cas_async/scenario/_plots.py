@@ -44,6 +44,7 @@ def write_plots(
     delivery_times: Sequence[float] = (),
     series: Mapping[str, Mapping[str, Sequence[float]]] | None = None,
     item_name: str = "item",
+    verb: str = "delivered",
 ) -> list[Path]:
     """Writes the five figures of a run to ``out_dir``.
 
@@ -80,6 +81,7 @@ def write_plots(
         series: measures over time, ``{name: {"t": [...], "value": [...]}}``
             (``RunResult.series``).
         item_name: what the items are called, singular.
+        verb: what is done to them (``RunResult.verb``: ``"delivered"``).
 
     Returns:
         The paths written, in the order above.
@@ -139,7 +141,7 @@ def write_plots(
     paths.append(_save(figure, out_dir / "snapshots_by_time.png"))
 
     paths.append(_save(_trajectories(trace, rows, world, title), out_dir / "trajectories.png"))
-    figure = _over_time(trace, delivery_times, series or {}, title, item_name)
+    figure = _over_time(trace, delivery_times, series or {}, title, f"{item_name}s {verb}")
     paths.append(_save(figure, out_dir / "over_time.png"))
     return paths
 
@@ -207,7 +209,7 @@ def _over_time(
     delivery_times: Sequence[float],
     series: Mapping[str, Mapping[str, Sequence[float]]],
     title: str,
-    item_name: str,
+    done: str,
 ) -> Figure:
     from matplotlib.figure import Figure
 
@@ -218,8 +220,8 @@ def _over_time(
     delivered = sorted(delivery_times)
     end = max([*trace.times.tolist(), *trace.exchange_times.tolist(), *delivered], default=0.0)
     axes.step([0.0, *delivered, end], [0, *range(1, len(delivered) + 1), len(delivered)],
-              where="post", label=f"{item_name}s delivered")  # fmt: skip
-    axes.set_ylabel(f"{item_name}s delivered")
+              where="post", label=done)  # fmt: skip
+    axes.set_ylabel(done)
     exchanges = trace.exchange_counts
     if len(exchanges):
         twin = axes.twinx()

@@ -8,6 +8,9 @@ Elsewhere (a pipe, a file, CI) one plain line is printed every ``interval`` wall
 seconds, with no control characters::
 
     t=112.5s buckets 9/20 exchanges 31
+
+What is counted is the mission's (its objective's ``noun`` and ``detail``):
+``objects 3/5 | ... | 2 joint carries`` for another application.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ class Progress:
         target: items to deliver for the run to be complete.
         item_name: what an item is called, singular (e.g. ``"bucket"``).
         interval: wall seconds between plain lines (not on a TTY).
+        detail: what the second count counts, plural (``"exchanges"``).
         tty: redraw in place; ``None`` asks ``stream.isatty()``.
         now: the wall clock, in seconds.
 
@@ -49,6 +53,7 @@ class Progress:
     __slots__ = (
         "_closed",
         "_delivered",
+        "_detail",
         "_due",
         "_exchanges",
         "_items",
@@ -70,6 +75,7 @@ class Progress:
         interval: float = 1.0,
         tty: bool | None = None,
         now: Callable[[], float] = time.monotonic,
+        detail: str = "exchanges",
     ) -> None:
         if target < 0:
             raise ValueError(f"Progress: target must not be negative, got {target}")
@@ -78,6 +84,7 @@ class Progress:
         self._stream = stream
         self._target = int(target)
         self._items = plural(item_name)
+        self._detail = detail
         self._tty = stream.isatty() if tty is None else tty
         self._period = _TTY_PERIOD if self._tty else float(interval)
         self._now = now
@@ -89,7 +96,11 @@ class Progress:
         self._closed = False
 
     def update(self, sim_time: float, delivered: int, exchanges: int) -> None:
-        """Records the run's state and shows it if a line is due."""
+        """Records the run's state and shows it if a line is due.
+
+        ``delivered`` counts toward the target; ``exchanges`` is the second count
+        (named by ``detail``).
+        """
         if self._closed:
             return
         self._sim_time = sim_time
@@ -128,7 +139,7 @@ class Progress:
         else:
             self._stream.write(
                 f"t={self._sim_time:.1f}s {self._items} {self._delivered}/{self._target}"
-                f" exchanges {self._exchanges}\n"
+                f" {self._detail} {self._exchanges}\n"
             )
         self._stream.flush()
 
@@ -141,5 +152,5 @@ class Progress:
         digits = len(str(self._target))
         return (
             f"[{bar}] {self._delivered:>{digits}}/{self._target} {self._items}"
-            f" | t = {self._sim_time:.1f} s | {self._exchanges} exchanges"
+            f" | t = {self._sim_time:.1f} s | {self._exchanges} {self._detail}"
         )

@@ -18,6 +18,12 @@ robots' positions (one number each, over time, by exchange count), and
 
 ``faults`` is ``null`` unless the scenario has a ``[faults]`` table; then it holds
 the fault counts (``sent``, ``lost``, ...) and the table gets a ``faults`` line.
+
+That is a mission of items (``kind`` ``"items"``, the Fire Brigade's). A mission with
+an objective of its own has no item fields (``created``, ``exchanges``,
+``travel_times``, ``handovers_per_item`` and their statistics); it has ``kind``,
+``verb`` and ``samples`` (the objective's values per thing done), each summarised
+under ``statistics`` by its name.
 """
 
 from __future__ import annotations
@@ -92,7 +98,8 @@ def results_dict(result: RunResult) -> dict[str, Any]:
     Values TOML can hold but JSON cannot (dates and times) become ISO strings,
     and numpy scalars Python numbers.
     """
-    distance = {str(robot_id): result.distance[robot_id] for robot_id in sorted(result.distance)}
+    if result.kind != "items":
+        return _objective_dict(result)
     data = {
         "app": result.app,
         "item_name": result.item_name,
@@ -111,18 +118,59 @@ def results_dict(result: RunResult) -> dict[str, Any]:
         "statistics": {
             "travel_time": statistics(result.travel_times),
             "handovers_per_item": statistics(result.handovers_per_item),
-            "distance": {
-                **statistics(list(result.distance.values())),
-                "total": math.fsum(result.distance.values()),
-            },
-            "messages": {
-                "internal": sum(result.messages_internal.values()),
-                "external": sum(result.messages_external.values()),
-            },
-            "protocol_errors": sum(result.protocol_errors.values()),
+            **_common_statistics(result),
         },
         "travel_times": list(result.travel_times),
         "handovers_per_item": list(result.handovers_per_item),
+        **_common_data(result),
+    }
+    return cast(dict[str, Any], _plain(data))
+
+
+def _objective_dict(result: RunResult) -> dict[str, Any]:
+    """:func:`results_dict` of a mission with an objective of its own (no item fields)."""
+    data = {
+        "app": result.app,
+        "item_name": result.item_name,
+        "kind": result.kind,
+        "verb": result.verb,
+        "scenario": result.scenario,
+        "seed": result.seed,
+        "status": str(result.status),
+        "error": result.error,
+        "traceback": result.traceback,
+        "target": result.target,
+        "delivered": result.delivered,
+        "makespan": result.makespan,
+        "sim_time": result.sim_time,
+        "wall_time": result.wall_time,
+        "statistics": {
+            **{name: statistics(values) for name, values in result.samples.items()},
+            **_common_statistics(result),
+        },
+        "samples": {name: list(values) for name, values in result.samples.items()},
+        **_common_data(result),
+    }
+    return cast(dict[str, Any], _plain(data))
+
+
+def _common_statistics(result: RunResult) -> dict[str, Any]:
+    return {
+        "distance": {
+            **statistics(list(result.distance.values())),
+            "total": math.fsum(result.distance.values()),
+        },
+        "messages": {
+            "internal": sum(result.messages_internal.values()),
+            "external": sum(result.messages_external.values()),
+        },
+        "protocol_errors": sum(result.protocol_errors.values()),
+    }
+
+
+def _common_data(result: RunResult) -> dict[str, Any]:
+    distance = {str(robot_id): result.distance[robot_id] for robot_id in sorted(result.distance)}
+    return {
         "distance": distance,
         "messages_internal": dict(sorted(result.messages_internal.items())),
         "messages_external": dict(sorted(result.messages_external.items())),
@@ -136,7 +184,6 @@ def results_dict(result: RunResult) -> dict[str, Any]:
         "by_exchange": {name: dict(series) for name, series in result.by_exchange.items()},
         "config": result.config,
     }
-    return cast(dict[str, Any], _plain(data))
 
 
 def _plain(value: Any) -> Any:
@@ -271,7 +318,7 @@ _Row = tuple[str, str | list[str], str]
 
 def summary_table(result: RunResult) -> str:
     """A plain-text summary of ``result`` for a terminal, one figure per line."""
-    item, items = result.item_name, plural(result.item_name)
+    items = plural(result.item_name)
     completed = result.status is RunStatus.COMPLETED
     status = "completed" if completed else _STATUS_WORDS.get(result.status, str(result.status))
     rows: list[_Row] = []
@@ -282,31 +329,12 @@ def summary_table(result: RunResult) -> str:
         rows.append(("makespan", f"{result.makespan:,.1f} s simulated", wall))
     else:
         rows.append(("makespan", f"not reached (ran {result.sim_time:,.1f} s simulated)", wall))
-    rows.append(
-        (
-            f"{items} delivered",
-            f"{result.delivered:,} of {result.target:,}",
-            f"(created {result.created:,}, exchanges {result.exchanges:,})",
-        )
-    )
-    travel = statistics(result.travel_times)
-    rows.append(
-        (
-            f"{item} travel time",
-            _stats_text(travel, ("mean", "median", "p95"), _decimal, unit=" s"),
-            "",
-        )
-    )
-    handovers = statistics(result.handovers_per_item)
-    rows.append(
-        (
-            f"hand-overs per {item}",
-            _stats_text(handovers, ("mean", "median", "max"), _count_like),
-            "",
-        )
-    )
+    if result.kind == "items":
+        rows += _item_rows(result)
+    else:
+        rows += _objective_rows(result)
     if result.delivery_times:
-        rows.append((f"{items} delivered by", _delivered_parts(result), ""))
+        rows.append((f"{items} {result.verb} by", _delivered_parts(result), ""))
     for name, measured in result.metrics.items():
         rows.append((name.replace("_", " "), _measure_parts(result, name, measured), ""))
     distance = statistics(list(result.distance.values()))
@@ -326,6 +354,46 @@ def summary_table(result: RunResult) -> str:
         rows.append((key.replace("_", " "), _extra_text(value), ""))
     header = f"{result.app} — {result.scenario}, seed {result.seed}: {status}"
     return "\n".join([header, *_render(rows)])
+
+
+def _item_rows(result: RunResult) -> list[_Row]:
+    """An item mission's rows: delivered, travel time and hand-overs per item."""
+    item, items = result.item_name, plural(result.item_name)
+    return [
+        (
+            f"{items} delivered",
+            f"{result.delivered:,} of {result.target:,}",
+            f"(created {result.created:,}, exchanges {result.exchanges:,})",
+        ),
+        (
+            f"{item} travel time",
+            _stats_text(
+                statistics(result.travel_times), ("mean", "median", "p95"), _decimal, unit=" s"
+            ),
+            "",
+        ),
+        (
+            f"hand-overs per {item}",
+            _stats_text(
+                statistics(result.handovers_per_item), ("mean", "median", "max"), _count_like
+            ),
+            "",
+        ),
+    ]
+
+
+def _objective_rows(result: RunResult) -> list[_Row]:
+    """A mission of its own: how many were done, then each of its samples' statistics."""
+    items = plural(result.item_name)
+    rows: list[_Row] = [
+        (f"{items} {result.verb}", f"{result.delivered:,} of {result.target:,}", "")
+    ]
+    for name, values in result.samples.items():
+        stats = statistics(values)
+        rows.append(
+            (name.replace("_", " "), _stats_text(stats, ("mean", "median", "max"), _decimal), "")
+        )
+    return rows
 
 
 def _render(rows: Sequence[_Row]) -> list[str]:

@@ -30,15 +30,16 @@ class RunResult:
     Attributes:
         scenario: the scenario file's path, as given.
         app: the application's name (e.g. ``"Fire Brigade"``).
-        item_name: what the app's items are called (e.g. ``"bucket"``).
+        item_name: what the mission's target counts, singular (``"bucket"``,
+            ``"object"``: the objective's ``noun``).
         seed: the seed of the run.
         status: how it ended.
         error: the failure's message when ``status`` is FAILED.
         traceback: the failure's traceback (of the layer's own exception).
-        target: items to deliver for the mission to be complete.
-        created: items created during the run.
-        delivered: items delivered (retired).
-        exchanges: hand-overs of an item from one robot to another.
+        target: how many must be done for the mission to be complete.
+        created: items created during the run (an item mission only).
+        delivered: how many were done: items delivered (retired), objects moved.
+        exchanges: hand-overs of an item from one robot to another (an item mission only).
         makespan: simulated instant the target was reached (``None`` if it was not).
         sim_time: simulated instant the run ended.
         wall_time: wall-clock seconds from start to end.
@@ -60,7 +61,14 @@ class RunResult:
             ``measures``): the mean over the last third of the run's samples.
         series: each of those measures over time: ``{"t": [...], "value": [...]}``;
             and by exchange count in ``by_exchange``: ``{"count": [...], "value": [...]}``.
-        delivery_times: the simulated instant of each delivery, in order.
+        delivery_times: the simulated instant each was done (delivered), in order.
+        kind: the objective's kind: ``"items"`` (the item fields above are
+            measured) or the application's own.
+        verb: what was done to each (``"delivered"``, ``"moved"``).
+        detail: the name of the progress line's second count (``"exchanges"``).
+        samples: an objective's own values per thing done (``"time_per_object"``):
+            summarised with :func:`~cas_async.scenario.statistics` in the table and
+            results.json.
     """
 
     scenario: str
@@ -91,22 +99,27 @@ class RunResult:
     series: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     by_exchange: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     delivery_times: list[float] = field(default_factory=list)
+    kind: str = "items"
+    verb: str = "delivered"
+    detail: str = "exchanges"
+    samples: dict[str, list[float]] = field(default_factory=dict)
 
     def scalars(self) -> dict[str, float]:
         """The run's figures as numbers, one per name: what a sweep tabulates.
 
         ``makespan`` (absent when the target was not reached), ``sim_time``,
-        ``delivered``, ``exchanges``, ``exchanges_per_item`` (mean hand-overs per
-        delivered item), ``travel_time`` (mean), ``distance`` (mean per mobile
-        robot), ``wall_time``, then every entry of ``metrics`` and every numeric
-        entry of ``extra``.
+        ``delivered``, ``exchanges`` (an item mission's), ``exchanges_per_item``
+        (mean hand-overs per delivered item), ``travel_time`` (mean), ``distance`` (mean per mobile
+        robot), ``wall_time``, the mean of each of ``samples``, then every entry of
+        ``metrics`` and every numeric entry of ``extra``.
         """
         figures: dict[str, float] = {}
         if self.makespan is not None:
             figures["makespan"] = self.makespan
         figures["sim_time"] = self.sim_time
         figures["delivered"] = float(self.delivered)
-        figures["exchanges"] = float(self.exchanges)
+        if self.kind == "items":
+            figures["exchanges"] = float(self.exchanges)
         if self.handovers_per_item:
             figures["exchanges_per_item"] = fmean(self.handovers_per_item)
         if self.travel_times:
@@ -114,6 +127,9 @@ class RunResult:
         if self.distance:
             figures["distance"] = fmean(self.distance.values())
         figures["wall_time"] = self.wall_time
+        for name, values in self.samples.items():
+            if values:
+                figures[name] = fmean(values)
         figures.update(self.metrics)
         for name, value in self.extra.items():
             if isinstance(value, int | float) and not isinstance(value, bool):

@@ -4,10 +4,13 @@
 asyncio program; :class:`ScenarioRun` takes the same steps one by one, for a
 caller that acts between them (the CLI, which adds argument parsing, signals
 and output files, writes the results before the robots stop).
-The run ends when the app's target number of items has been retired, when
-``run.max_time`` simulated seconds have passed, when ``stop`` is set (Ctrl-C), or
-when a layer fails; in every case the result says which, and holds what was
-measured up to then.
+The run ends when the mission's objective is complete (see
+:mod:`~cas_async.scenario._objective`: the Fire Brigade's is a number of items
+retired), when ``run.max_time`` simulated seconds have passed, when ``stop`` is
+set (Ctrl-C), or when a layer fails; in every case the result says which, and
+holds what was measured up to then. The runner itself knows no kind of work:
+progress, completion, the invariant checked at every sample and the mission's
+own results are the objective's.
 """
 
 from __future__ import annotations
@@ -17,7 +20,6 @@ import contextlib
 import math
 import time
 import traceback
-from collections import Counter
 from collections.abc import Callable, Coroutine
 from pathlib import Path
 from typing import Any, TextIO, final
@@ -30,7 +32,6 @@ from .._errors import ConfigurationError, LayerError
 from .._swarm import Swarm
 from .._swarm_key import SwarmKey
 from ..sim._environment import Environment
-from ..sim._items import ItemEvent, ItemEventKind
 from ..transport._authenticated import AuthenticatedTransport
 from ..transport._base import Transport
 from ..transport._faulty import FaultyTransport
@@ -41,6 +42,7 @@ from ._app import Mission
 from ._distributed import World
 from ._gc_policy import young_generation_for
 from ._loader import Scenario
+from ._objective import Items, Objective
 from ._progress import Progress
 from ._results import RunResult, RunStatus
 from ._trace import Trace, TraceCsv
@@ -147,30 +149,48 @@ class ScenarioRun:
         self._mission = mission = scenario.app.build(
             scenario.setup(environment, clock, self._transport)
         )
+        self._objective = objective = _objective_of(mission, scenario)
+        if world is not None and not objective.distributable:
+            raise ConfigurationError(
+                f"{scenario.path}: {scenario.app.name}'s mission ({type(objective).__name__}) "
+                "keeps its state in each process: it cannot run across processes "
+                "(run it without --processes)"
+            )
         self._progress = None
         if progress_to is not None:
             self._progress = Progress(
                 progress_to,
-                target=mission.target,
-                item_name=scenario.app.item_name,
+                target=objective.target,
+                item_name=objective.noun,
                 interval=run.progress_interval,
+                detail=objective.detail,
             )
         self.result = RunResult(
             scenario=str(scenario.path),
             app=scenario.app.name,
-            item_name=scenario.app.item_name,
+            item_name=objective.noun,
             seed=run.seed,
-            target=mission.target,
+            target=objective.target,
             groups={label: list(ids) for label, ids in mission.groups.items()},
             config=scenario.data,
+            kind=objective.kind,
+            verb=objective.verb,
+            detail=objective.detail,
         )
         """What the run measured: complete once the robots have stopped."""
         self.trace = Trace(environment.robot_ids)
         """Where the robots were over simulated time."""
         self._rows = np.array(self.trace.ids, dtype=np.int64)
         self._complete = asyncio.Event()
-        self._events_measured: int | None = None  # item events up to the target, once reached
-        environment.items.subscribe(self._on_item)
+        objective.attach(
+            _RunWatch(
+                environment,
+                clock,
+                changed=self._changed,
+                completed=self._completed,
+                exchanged=self._exchanged,
+            )
+        )
         if observe is not None:
             observe(environment)
         if world is not None:
@@ -180,27 +200,32 @@ class ScenarioRun:
         self._ended = False
         self._gc = contextlib.ExitStack()
 
-    def _on_item(self, event: ItemEvent) -> None:
-        if self._ended or self._events_measured is not None:  # what comes after is not the run's
+    def _changed(self, t: float) -> None:
+        if self._progress is not None and not self._ended:
+            done, detail = self._objective.progress()
+            self._progress.update(t, done, detail)
+
+    def _completed(self, t: float) -> None:
+        if self._ended or self._complete.is_set():  # what comes after is not the run's
             return
-        ledger = self.environment.items
-        if event.kind is ItemEventKind.TRANSFERRED:
-            if self._scenario.run.trace_exchanges:
-                xy = self.environment.positions_at(event.t).xy
-                self.trace.exchange(event.t, ledger.transfers, xy, self._carrying())
-        elif event.kind is ItemEventKind.RETIRED and ledger.retired == self._mission.target:
-            self.result.makespan = event.t
-            # The run ends here: an item retired before the loop gets round to ending
-            # it (on scaled time, a moment later) is not the run's.
-            self._events_measured = len(ledger.events)
-            self._complete.set()
-        if self._progress is not None:
-            self._progress.update(event.t, ledger.retired, ledger.transfers)
+        self.result.makespan = t
+        self._complete.set()
+
+    def _exchanged(self, t: float, count: int) -> None:
+        if self._ended or self._complete.is_set() or not self._scenario.run.trace_exchanges:
+            return
+        xy = self.environment.positions_at(t).xy
+        self.trace.exchange(t, count, xy, self._carrying())
 
     @property
     def mission(self) -> Mission:
         """What the application built: its robots, target, groups and measures."""
         return self._mission
+
+    @property
+    def objective(self) -> Objective:
+        """What the mission is for: :class:`Items` unless the application chose its own."""
+        return self._objective
 
     @property
     def swarm(self) -> Swarm:
@@ -287,10 +312,10 @@ class ScenarioRun:
         _measure(
             result,
             self._mission,
+            self._objective,
             self._message_counts(),
             self.environment,
             self._clock.now(),
-            self._events_measured,
         )
         _measure_positions(result, self._mission, self.trace)
         if self._world is not None:
@@ -336,18 +361,18 @@ class ScenarioRun:
     def _sample(self, t: float) -> None:
         if self._ended:
             return
-        environment, ledger = self.environment, self.environment.items
-        # Every hand-over already checks the items it touches; this is the full audit.
-        ledger.check()
-        self.trace.sample(t, environment.positions_at(t).xy, self._carrying())
+        objective = self._objective
+        objective.check()  # the full audit of the mission's invariant
+        self.trace.sample(t, self.environment.positions_at(t).xy, self._carrying())
         if self._progress is not None:
-            self._progress.update(t, ledger.retired, ledger.transfers)
+            done, detail = objective.progress()
+            self._progress.update(t, done, detail)
         if self._trace_csv is not None:
             self._trace_csv.write_until(t)  # what came before this sample is final
 
     def _carrying(self) -> npt.NDArray[np.bool_]:
-        """Which robots of the trace hold an item now, in the trace's row order."""
-        return np.isin(self._rows, self.environment.items.holders())
+        """Which robots of the trace carry something now, in the trace's row order."""
+        return np.isin(self._rows, np.fromiter(self._objective.carrying(), dtype=np.int64))
 
     def _message_counts(self) -> tuple[dict[str, dict[str, int]], dict[str, int]]:
         """Messages by kind and class, and drop reasons: this process's, or the workers'."""
@@ -448,6 +473,45 @@ async def _until_done(
     return RunStatus.TIMED_OUT, None
 
 
+def _objective_of(mission: Mission, scenario: Scenario) -> Objective:
+    """The mission's objective: its own, or retiring its ``target`` items."""
+    if mission.objective is not None:
+        return mission.objective
+    if mission.target is None:  # Mission refuses neither, but it is not frozen
+        raise ConfigurationError(f"{scenario.app.name}: the mission has no target nor objective")
+    return Items(mission.target, getattr(scenario.app, "item_name", "item"))
+
+
+@final
+class _RunWatch:
+    """What a run gives its objective to report to (see :class:`Watch`)."""
+
+    __slots__ = ("_clock", "_environment", "changed", "completed", "exchanged")
+
+    def __init__(
+        self,
+        environment: Environment,
+        clock: Clock,
+        *,
+        changed: Callable[[float], None],
+        completed: Callable[[float], None],
+        exchanged: Callable[[float, int], None],
+    ) -> None:
+        self._environment = environment
+        self._clock = clock
+        self.changed = changed
+        self.completed = completed
+        self.exchanged = exchanged
+
+    @property
+    def environment(self) -> Environment:
+        return self._environment
+
+    @property
+    def clock(self) -> Clock:
+        return self._clock
+
+
 def _failed(result: RunResult, error: BaseException) -> None:
     """Marks the run failed, with the error and the traceback of what raised."""
     result.status, result.error = RunStatus.FAILED, str(error)
@@ -458,38 +522,25 @@ def _failed(result: RunResult, error: BaseException) -> None:
 def _measure(
     result: RunResult,
     mission: Mission,
+    objective: Objective,
     counts: tuple[dict[str, dict[str, int]], dict[str, int]],
     environment: Environment,
     now: float,
-    events: int | None,
 ) -> None:
-    """Measures the run as it ended; only the first ``events`` item events when given."""
-    ledger = environment.items
+    """Measures the run as it ended: the objective's figures, distances and messages."""
     result.sim_time = now
-    counted = ledger.events if events is None else ledger.events[:events]
-    kinds = Counter(event.kind for event in counted)
-    result.created = kinds[ItemEventKind.CREATED]
-    result.delivered = kinds[ItemEventKind.RETIRED]
-    result.exchanges = kinds[ItemEventKind.TRANSFERRED]
-    for event in counted:
-        if event.kind is ItemEventKind.RETIRED:
-            result.delivery_times.append(event.t)
-            history = ledger.history(event.item)
-            result.travel_times.append(event.t - history[0].t)
-            result.handovers_per_item.append(
-                sum(e.kind is ItemEventKind.TRANSFERRED for e in history)
-            )
     result.distance = {
         robot_id: travelled
         for robot_id, travelled in environment.distances(now).items()
         if environment.is_mobile(robot_id)
     }
+    objective.measure(result, now)
     messages, errors = counts
     result.messages_internal = dict(sorted(messages["internal"].items()))
     result.messages_external = dict(sorted(messages["external"].items()))
     result.protocol_errors = dict(sorted(errors.items()))
     if mission.extra is not None:
-        result.extra = dict(mission.extra())
+        result.extra.update(mission.extra())
 
 
 def _measure_positions(result: RunResult, mission: Mission, trace: Trace) -> None:
