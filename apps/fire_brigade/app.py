@@ -1,25 +1,43 @@
-"""The Fire Brigade as a cas_async simulation app: scenario checks and building the swarm."""
+"""The Fire Brigade as a cas_async simulation app: scenario checks and building the swarm.
+
+Its five levels are named (``stack``), so a scenario's ``[layers]`` may replace any
+of them (``task = "my_package.PatientTask"``); the partner strategy may also be named
+by ``strategy.name``, and ``[layers] strategy`` wins over it.
+"""
 
 from __future__ import annotations
 
 import math
-from typing import Final
+from collections.abc import Sequence
+from typing import Any, Final
 
-from cas_async import Layer, Pose, Robot
-from cas_async.scenario import Mission, ScenarioError, SimulationSetup
+from cas_async import Layer, Message, Pose, Robot
+from cas_async.scenario import LayerSlot, Mission, ScenarioError, SimulationSetup
 from cas_async.sim import SimulatedHands, SimulatedMiddleware
 
 from .action import Action
-from .base import Params, Peers, Point
+from .base import BrigadeLayer, Params, Peers, Point
 from .config import FireBrigadeConfig
 from .goal import Goal
 from .group_activity import GroupActivity
 from .lines import LineShare, segments
 from .messages import MESSAGES, Kind
-from .strategies import strategy_class
+from .strategies import TimeStrategy, strategy_class
+from .strategy import Strategy
 from .task import Task
 
-__all__ = ["MESSAGES", "FireBrigade"]
+__all__ = ["ACTION", "GOAL", "GROUP_ACTIVITY", "MESSAGES", "STRATEGY", "TASK", "FireBrigade"]
+
+GOAL: Final = LayerSlot("goal", BrigadeLayer, Goal)
+"""Level 0: decides to move a bucket, and to which Sink; built as ``Goal(params)``."""
+STRATEGY: Final = LayerSlot("strategy", Strategy, TimeStrategy)
+"""Level 1: finds a partner; a :class:`Strategy` (default: ``strategy.name``'s)."""
+GROUP_ACTIVITY: Final = LayerSlot("group_activity", BrigadeLayer, GroupActivity)
+"""Level 2: agrees on the meeting point; built as ``GroupActivity(params)``."""
+TASK: Final = LayerSlot("task", BrigadeLayer, Task)
+"""Level 3: rotates, moves, waits and swaps; built as ``Task(params)``."""
+ACTION: Final = LayerSlot("action", Action, Action)
+"""Level 4: the robotic layer; built as ``Action(params, middleware, hands)``."""
 
 
 THESIS_SNAPSHOTS: Final = (35, 95, 125, 200)
@@ -39,6 +57,8 @@ class FireBrigade:
     name = "Fire Brigade"
     item_name = "bucket"
     config_type = FireBrigadeConfig
+    stack: Sequence[LayerSlot[Any]] = (GOAL, STRATEGY, GROUP_ACTIVITY, TASK, ACTION)
+    messages: Sequence[type[Message]] = MESSAGES
 
     def robots(self, config: FireBrigadeConfig) -> dict[str, int]:
         """Stations (every copy of the layout) and Transporters, counted without placing any."""
@@ -140,7 +160,18 @@ class FireBrigade:
             x, y = rng.uniform(low, high)
             placed.append((Kind.TRANSPORTER, Pose(x, y, rng.uniform(-math.pi, math.pi))))
         roster = tuple(range(1, len(placed) + 1))
-        strategy = strategy_class(config.strategy.name)
+        named = strategy_class(config.strategy.name)
+        goal = setup.layer(GOAL)
+        strategy = setup.layer(STRATEGY, default=named)
+        group_activity = setup.layer(GROUP_ACTIVITY)
+        task = setup.layer(TASK)
+        action = setup.layer(ACTION)
+        # What results.json calls the strategy: its name, or the class [layers] put instead.
+        strategy_label = (
+            config.strategy.name
+            if strategy is named
+            else f"{strategy.__module__}:{strategy.__qualname__}"
+        )
         robots = []
         groups: dict[str, list[int]] = {kind.name.title(): [] for kind in Kind}
         for at, (robot_id, (kind, pose)) in enumerate(zip(roster, placed, strict=True)):
@@ -172,11 +203,11 @@ class FireBrigade:
             )
             hands = SimulatedHands(setup.environment, robot_id, setup.clock, reach=_REACH)
             layers: list[Layer] = [
-                Goal(params),
+                goal(params),
                 strategy(params),
-                GroupActivity(params),
-                Task(params),
-                Action(params, middleware, hands),
+                group_activity(params),
+                task(params),
+                action(params, middleware, hands),
             ]
             robots.append(
                 Robot(
@@ -196,7 +227,7 @@ class FireBrigade:
             robots,
             config.mission.buckets,
             groups,
-            extra=lambda: {"strategy": config.strategy.name},
+            extra=lambda: {"strategy": strategy_label},
             measures={"line_share": on_lines},
             snapshot_exchanges=THESIS_SNAPSHOTS,
         )

@@ -16,6 +16,9 @@ A scenario is a TOML file::
     loss = 0.1
     delay = [0.0, 0.2]
 
+    [layers]                    # optional: replace levels of the app's stack
+    task = "my_package.tasks.PatientTask"
+
     [robots]                    # every other key belongs to the application
     count = 40
 
@@ -25,11 +28,16 @@ table (arrays and values are replaced, not merged). Variants of a scenario are
 then a few lines each.
 
 :func:`load_scenario` reads it, applies ``--set key=value`` overrides, imports
-the application, validates ``[run]``, ``[world]``, ``[faults]`` and the application's keys
-(into ``app.config_type``, see :mod:`~cas_async.scenario._config`), checks that
+the application, validates ``[run]``, ``[world]``, ``[faults]``, ``[layers]`` and the
+application's keys (into ``app.config_type``, see :mod:`~cas_async.scenario._config`), checks that
 the machine can hold the robots they make (see :mod:`~cas_async.scenario._capacity`),
 then lets the application check what needs several keys at once. Every problem found is
 reported in one :class:`~cas_async.scenario._config.ScenarioError` naming the file.
+
+``[layers]`` replaces levels of the app's stack, named by name or index (0 is the
+top), by class paths (``"package.module.Class"`` or ``"package.module:Class"``); see
+:mod:`~cas_async.scenario._layers` for what is checked. The paths stay in
+:attr:`Scenario.data`: a worker that validates the same data gets the same classes.
 """
 
 from __future__ import annotations
@@ -37,19 +45,18 @@ from __future__ import annotations
 import copy
 import dataclasses
 import importlib
-import importlib.util
 import os
 import re
-import sys
 import tomllib
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final, Literal, cast
 
 import numpy as np
 
 from .._clock import Clock, ScaledClock, VirtualClock
+from .._layer import Layer
 from .._supervision import RestartPolicy
 from ..sim._environment import Environment
 from ..transport._base import Transport
@@ -57,6 +64,7 @@ from ..transport._faulty import Faults
 from ._app import SimulationApp, SimulationSetup
 from ._capacity import Capacity, capacity_problems
 from ._config import ScenarioError, from_toml, setting, show
+from ._layers import importable_from, layer_classes
 
 __all__ = [
     "FaultsConfig",
@@ -68,9 +76,10 @@ __all__ = [
     "parse_override",
 ]
 
-_RESERVED: Final = frozenset({"app", "faults", "run", "world"})
+_RESERVED: Final = frozenset({"app", "faults", "layers", "run", "world"})
 _MISSING: Final = object()
-_APP_MEMBERS: Final = ("name", "item_name", "config_type", "robots", "check", "build")
+_APP_MEMBERS: Final = ("name", "config_type", "robots", "check", "build")
+"""What an app must have; ``item_name``, ``stack`` and ``messages`` are optional."""
 _IMPORT_PATH: Final = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?")
 _APP_EXPECTED: Final = 'an import path such as "package.module" or "package.module:attr"'
 
@@ -192,6 +201,8 @@ class Scenario:
         data: the file's TOML data after overrides (plain dicts and lists),
             to record with the results.
         faults: the ``[faults]`` table (no faults when absent).
+        layers: the classes ``[layers]`` puts in place of the app's own, by slot
+            name (checked; empty when absent).
     """
 
     path: Path
@@ -202,6 +213,7 @@ class Scenario:
     config: Any
     data: dict[str, Any]
     faults: FaultsConfig = FaultsConfig()
+    layers: Mapping[str, type[Layer]] = field(default_factory=dict)
 
     def clock(self) -> Clock:
         """A new clock for a run: virtual, or scaled by ``run.time_factor``."""
@@ -210,7 +222,7 @@ class Scenario:
     def setup(
         self, environment: Environment, clock: Clock, transport: Transport
     ) -> SimulationSetup[Any]:
-        """What the app builds with: this scenario's settings, seed and restart policy."""
+        """What the app builds with: this scenario's settings, seed, restart policy and layers."""
         return SimulationSetup(
             self.config,
             (self.world.width, self.world.height),
@@ -219,6 +231,7 @@ class Scenario:
             transport,
             np.random.default_rng(self.run.seed),
             self.run.restart,
+            layers=self.layers,
         )
 
 
@@ -381,8 +394,10 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
             ("faults.delay", f"expected [min, max] with min <= max, got {show(faults.delay)}")
         )
     config = None
+    layers: dict[str, type[Layer]] = {}
     if app is not None:
         config = _section(app.config_type, data, "", problems, others=_RESERVED)
+        layers = layer_classes(data.get("layers"), app, problems, path)
     if run is not None and run.virtual and run.transport == "udp":
         problems.append(
             (
@@ -420,7 +435,7 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
     if too_many:
         raise ScenarioError(too_many)
     app.check(config, (world.width, world.height))
-    return Scenario(path, app_path, app, run, world, config, data, faults)
+    return Scenario(path, app_path, app, run, world, config, data, faults, layers)
 
 
 def _section(
@@ -438,22 +453,6 @@ def _section(
         return None
 
 
-def _importable_from(path: Path, module_name: str) -> None:
-    """Lets an app that ships next to its scenarios be imported from any directory.
-
-    When ``module_name``'s top package is not importable, the nearest directory
-    above the scenario file that holds it is put on ``sys.path`` (the app of a
-    repository's ``apps/x/scenarios/y.toml`` is found whatever the working directory).
-    """
-    top = module_name.split(".")[0]
-    if importlib.util.find_spec(top) is not None:
-        return
-    for folder in path.resolve().parents:
-        if (folder / top / "__init__.py").is_file() or (folder / f"{top}.py").is_file():
-            sys.path.append(str(folder))
-            return
-
-
 def _import_app(
     spec: object, problems: list[tuple[str, str]], path: Path
 ) -> tuple[str, SimulationApp[Any] | None]:
@@ -466,7 +465,7 @@ def _import_app(
         return "", None
     module_name, _, attribute = spec.partition(":")
     attribute = attribute or "app"
-    _importable_from(path, module_name)
+    importable_from(path, module_name)
     try:
         module = importlib.import_module(module_name)
     except ImportError as error:

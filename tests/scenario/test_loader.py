@@ -183,7 +183,7 @@ def test_problems_of_every_section_are_reported_together(write: WriteScenario) -
                 (
                     "",
                     "unknown key 'robot' (did you mean 'robots'? "
-                    "expected one of: app, faults, label, robots, run, world)",
+                    "expected one of: app, faults, label, layers, robots, run, world)",
                 )
             ],
             id="app-section",
@@ -196,7 +196,7 @@ def test_problems_of_every_section_are_reported_together(write: WriteScenario) -
                 (
                     "",
                     "unknown key 'wrold' (did you mean 'world'? "
-                    "expected one of: app, faults, label, robots, run, world)",
+                    "expected one of: app, faults, label, layers, robots, run, world)",
                 ),
             ],
             id="runner-section",
@@ -261,7 +261,7 @@ def test_run_and_world_are_checked_even_when_the_app_is_not_found(write: WriteSc
         pytest.param(
             'app = "tests.scenario.fake_app:not_an_app"',
             '"tests.scenario.fake_app:not_an_app" is not a simulation app: '
-            "it has no name, item_name, config_type, robots, check, build",
+            "it has no name, config_type, robots, check, build",
             id="not-an-app",
         ),
         pytest.param(
