@@ -24,14 +24,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Generic, Protocol, TypeAlias, TypeVar, cast
+from typing import Generic, Protocol, TypeAlias, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from .._clock import Clock
 from .._layer import Layer
-from .._message import Message
 from .._robot import Robot
 from .._supervision import RestartPolicy
 from ..sim._environment import Environment
@@ -166,21 +165,22 @@ class SimulationApp(Protocol[C]):
 
     Attributes:
         name: shown in the summary, e.g. ``"Fire Brigade"``.
-        item_name: what its items are, singular, e.g. ``"bucket"`` (for a
-            mission given as a ``target``; optional otherwise).
         config_type: a frozen dataclass: the scenario file's keys other than
             ``app``, ``run``, ``world``, ``faults`` and ``layers`` are validated into it.
-        stack: optional: every level of the robots' stack, top first, by name,
-            so that a scenario's ``[layers]`` may replace any of them.
-        messages: optional (needed with ``stack``): the stack's message classes,
-            which a replacement layer may not add to.
+
+    Optional attributes, read when present:
+
+    * ``item_name``: what its items are, singular (``"bucket"``), for a mission
+      given as a ``target`` (default ``"item"``);
+    * ``stack``: every level of the robots' stack, top first, one
+      :class:`LayerSlot` each, so that a scenario's ``[layers]`` may replace any
+      of them (the robots must have exactly these levels);
+    * ``messages``: the stack's message classes (needed with ``stack``): a
+      replacement layer may not add to them.
     """
 
     name: str
-    item_name: str
     config_type: type[C]
-    stack: Sequence[LayerSlot[Any]]
-    messages: Sequence[type[Message]]
 
     def robots(self, config: C) -> Mapping[str, int]:
         """How many robots ``config`` builds, by the key that sets each number.

@@ -105,7 +105,7 @@ class Objective(ABC):
     @property
     @abstractmethod
     def target(self) -> int:
-        """How many must be done for the mission to be complete (0: complete at once)."""
+        """How many must be done for the mission to be complete."""
 
     @abstractmethod
     def attach(self, watch: Watch) -> None:
@@ -125,6 +125,10 @@ class Objective(ABC):
     @abstractmethod
     def measure(self, result: RunResult, end: float) -> None:
         """Writes what the objective measured into ``result``, once, as the run ended at ``end``.
+
+        ``end`` may be later than the completion: on scaled time the robots go on
+        a moment before the run ends, so an objective counts only what happened
+        up to the instant it called ``completed`` (``result.makespan``).
 
         Set ``result.delivered`` (how many were done), ``result.delivery_times``
         (the instant each was done) and, for an objective of one's own, any

@@ -149,6 +149,7 @@ class ScenarioRun:
         self._mission = mission = scenario.app.build(
             scenario.setup(environment, clock, self._transport)
         )
+        _check_swaps(scenario, mission)
         self._objective = objective = _objective_of(mission, scenario)
         if world is not None and not objective.distributable:
             raise ConfigurationError(
@@ -467,10 +468,39 @@ async def _until_done(
         return RunStatus.COMPLETED, None
     if waits["swarm"] in done or waits["sampling"] in done:
         error = (waits["swarm"] if waits["swarm"] in done else waits["sampling"]).exception()
-        return RunStatus.FAILED, error or RuntimeError("the swarm stopped")
+        return RunStatus.FAILED, error or RuntimeError(
+            "every robot stopped (each layer's termination condition held) "
+            "before the mission was complete"
+        )
     if "stop" in waits and waits["stop"] in done:
         return RunStatus.INTERRUPTED, None
     return RunStatus.TIMED_OUT, None
+
+
+def _check_swaps(scenario: Scenario, mission: Mission) -> None:
+    """Every robot has the stack's height and, at each replaced level, the scenario's class.
+
+    Raises:
+        ConfigurationError: the app built a robot without ``setup.layer(...)``.
+    """
+    if not scenario.layers:
+        return
+    names = [slot.name for slot in getattr(scenario.app, "stack", ())]
+    for robot in mission.robots:
+        built = robot.layers
+        if len(built) != len(names):
+            raise ConfigurationError(
+                f"{scenario.path}: layers: {scenario.app.name} built robot {robot.robot_id} with "
+                f"{len(built)} layers, but its stack names {len(names)}"
+            )
+        for name, cls in scenario.layers.items():
+            level = names.index(name)
+            if not isinstance(built[level], cls):
+                raise ConfigurationError(
+                    f"{scenario.path}: layers.{name}: {scenario.app.name} built robot "
+                    f"{robot.robot_id}'s level {level} as {type(built[level]).__qualname__}, "
+                    f"not {cls.__qualname__}: build each level with setup.layer(SLOT)"
+                )
 
 
 def _objective_of(mission: Mission, scenario: Scenario) -> Objective:

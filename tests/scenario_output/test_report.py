@@ -105,11 +105,16 @@ def test_statistics(values: list[float], expected: dict[str, float | None]) -> N
 # -- results.json ----------------------------------------------------------------------
 
 
+_OBJECTIVE_ONLY = {"kind", "verb", "detail", "samples"}
+"""Fields an item mission's results.json leaves out (it is as it was before objectives)."""
+_ITEM_ONLY = {"created", "exchanges", "travel_times", "handovers_per_item"}
+
+
 def test_results_dict_holds_every_field_and_the_statistics() -> None:
     result = make_result()
     data = results_dict(result)
     for field in dataclasses.fields(RunResult):
-        assert field.name in data, field.name
+        assert (field.name in data) is (field.name not in _OBJECTIVE_ONLY), field.name
     assert data["status"] == "completed"
     assert data["distance"] == {"4": 10.0, "5": 2.5, "12": 30.1}
     assert list(data["distance"]) == ["4", "5", "12"]
@@ -121,6 +126,23 @@ def test_results_dict_holds_every_field_and_the_statistics() -> None:
     assert stats["messages"] == {"internal": 2_113, "external": 247}
     assert stats["protocol_errors"] == 0
     assert list(data)[:5] == ["app", "item_name", "scenario", "seed", "status"]
+
+
+def test_results_dict_of_an_objective_of_its_own_has_its_samples_and_no_item_fields() -> None:
+    result = make_result()
+    result.kind, result.verb, result.detail = "boxes", "moved", "joint carries"
+    result.samples = {"time_per_object": [4.0, 6.0, 11.0]}
+    data = results_dict(result)
+    for field in dataclasses.fields(RunResult):
+        wanted = field.name not in _ITEM_ONLY and field.name != "detail"
+        assert (field.name in data) is wanted, field.name
+    assert (data["kind"], data["verb"]) == ("boxes", "moved")
+    assert data["statistics"]["time_per_object"]["median"] == 6.0
+    assert "travel_time" not in data["statistics"]
+    table = summary_table(result)
+    assert "buckets moved" in table
+    assert "time per object" in table
+    assert "hand-overs" not in table
 
 
 def test_results_dict_makes_toml_dates_json_ready() -> None:
