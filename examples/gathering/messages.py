@@ -1,0 +1,52 @@
+"""The gathering's messages: one typed class per meaning.
+
+Between robots (the Plan layers, external):
+
+* ``Position``: "I am at (x, y)"; each robot broadcasts its own once, at start.
+
+Inside a robot (Plan asks, Drive answers; internal):
+
+* ``DriveTo`` / ``Arrived``: drive to (x, y); the answer says where the robot stopped.
+
+Wire names carry the app's prefix: they must be unique in every process that
+imports these classes (another app may well have its own ``DriveTo``).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, TypeAlias
+
+from cas_async import Finite, Message, message
+
+__all__ = ["MESSAGES", "Arrived", "Coordinate", "DriveTo", "Position"]
+
+Coordinate: TypeAlias = Annotated[float, Finite]
+"""A position's x or y, in metres (checked on arrival: a NaN never reaches a layer)."""
+
+
+@message(name="gathering.Position")
+class Position(Message):
+    """Where the sender stands."""
+
+    x: Coordinate
+    y: Coordinate
+
+
+@message(name="gathering.DriveTo")
+class DriveTo(Message):
+    """Drive to ``(x, y)``: a request to the robotic layer, answered with :class:`Arrived`."""
+
+    x: Coordinate
+    y: Coordinate
+
+
+@message(name="gathering.Arrived")
+class Arrived(Message):
+    """The drive is over: the robot stands at ``(x, y)``."""
+
+    x: Coordinate
+    y: Coordinate
+
+
+MESSAGES: tuple[type[Message], ...] = (Position, DriveTo, Arrived)
+"""Every message of the stack: give it to every robot (``Robot(..., messages=MESSAGES)``)."""
