@@ -54,12 +54,14 @@ from pathlib import Path
 from types import CodeType, FunctionType
 from typing import Any, Final, TypeGuard
 
+from .._errors import ConfigurationError
 from .._layer import Layer
 from .._message import Message
+from .._robot import Robot
 from ._app import LayerSlot
 from ._config import show
 
-__all__ = ["importable_from", "layer_classes"]
+__all__ = ["check_built", "importable_from", "layer_classes"]
 
 _CLASS_PATH: Final = re.compile(
     r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*|\.[A-Za-z_]\w*)"
@@ -351,3 +353,31 @@ def _names(code: CodeType) -> Iterator[str]:
     for constant in code.co_consts:
         if isinstance(constant, CodeType):
             yield from _names(constant)
+
+
+def check_built(
+    stack: Sequence[LayerSlot[Any]], layers: Mapping[str, type[Layer]], robots: Iterable[Robot]
+) -> None:
+    """Every robot has the stack's height and, at each replaced level, the scenario's class.
+
+    Raises:
+        ConfigurationError: the app built a robot without ``setup.layer(...)``.
+    """
+    if not layers:
+        return
+    names = [slot.name for slot in stack]
+    for robot in robots:
+        built = robot.layers
+        if len(built) != len(names):
+            raise ConfigurationError(
+                f"layers: robot {robot.robot_id} was built with {len(built)} layers, "
+                f"but the app's stack names {len(names)}"
+            )
+        for name, cls in layers.items():
+            level = names.index(name)
+            if not isinstance(built[level], cls):
+                raise ConfigurationError(
+                    f"layers.{name}: robot {robot.robot_id}'s level {level} was built as "
+                    f"{type(built[level]).__qualname__}, not {cls.__qualname__}: "
+                    "the app must build each level with setup.layer(SLOT)"
+                )

@@ -28,9 +28,9 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections import Counter
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from pathlib import Path
-from typing import NamedTuple, Protocol
+from typing import NamedTuple, Protocol, final
 
 from .._clock import Clock
 from .._types import RobotId
@@ -39,7 +39,7 @@ from ..sim._items import ItemEvent, ItemEventKind
 from ._results import RunResult
 from ._trace import Trace
 
-__all__ = ["Items", "Objective", "Tally", "Watch"]
+__all__ = ["CallbackWatch", "Items", "Objective", "Tally", "Watch"]
 
 
 class Tally(NamedTuple):
@@ -80,6 +80,38 @@ class Watch(Protocol):
         The snapshots are what the figures and measures "by exchange" use; only
         when ``run.trace_exchanges`` is on.
         """
+
+
+@final
+class CallbackWatch:
+    """A :class:`Watch` that calls back: what a run gives its objective (internal)."""
+
+    __slots__ = ("_clock", "_environment", "changed", "completed", "exchanged")
+
+    def __init__(
+        self,
+        environment: Environment,
+        clock: Clock,
+        *,
+        changed: Callable[[float], None],
+        completed: Callable[[float], None],
+        exchanged: Callable[[float, int], None],
+    ) -> None:
+        self._environment = environment
+        self._clock = clock
+        self.changed = changed
+        self.completed = completed
+        self.exchanged = exchanged
+
+    @property
+    def environment(self) -> Environment:
+        """The run's Environment."""
+        return self._environment
+
+    @property
+    def clock(self) -> Clock:
+        """The run's clock."""
+        return self._clock
 
 
 class Objective(ABC):

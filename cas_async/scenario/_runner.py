@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import math
 import time
-import traceback
 from collections.abc import Callable, Coroutine
 from pathlib import Path
 from typing import Any, TextIO, final
@@ -41,8 +39,10 @@ from ..transport._zenoh import ZenohTransport
 from ._app import Mission
 from ._distributed import World
 from ._gc_policy import young_generation_for
+from ._layers import check_built
 from ._loader import Scenario
-from ._objective import Items, Objective
+from ._measure import mark_failed, measure_end, measure_positions
+from ._objective import CallbackWatch, Items, Objective
 from ._progress import Progress
 from ._results import RunResult, RunStatus
 from ._trace import Trace, TraceCsv
@@ -149,7 +149,10 @@ class ScenarioRun:
         self._mission = mission = scenario.app.build(
             scenario.setup(environment, clock, self._transport)
         )
-        _check_swaps(scenario, mission)
+        try:
+            check_built(getattr(scenario.app, "stack", ()), scenario.layers, mission.robots)
+        except ConfigurationError as error:
+            raise ConfigurationError(f"{scenario.path}: {error}") from None
         self._objective = objective = _objective_of(mission, scenario)
         if world is not None and not objective.distributable:
             raise ConfigurationError(
@@ -184,7 +187,7 @@ class ScenarioRun:
         self._rows = np.array(self.trace.ids, dtype=np.int64)
         self._complete = asyncio.Event()
         objective.attach(
-            _RunWatch(
+            CallbackWatch(
                 environment,
                 clock,
                 changed=self._changed,
@@ -309,8 +312,8 @@ class ScenarioRun:
         self._ended = True
         result.status = status
         if failure is not None:
-            _failed(result, failure)
-        _measure(
+            mark_failed(result, failure)
+        measure_end(
             result,
             self._mission,
             self._objective,
@@ -318,7 +321,7 @@ class ScenarioRun:
             self.environment,
             self._clock.now(),
         )
-        _measure_positions(result, self._mission, self.trace)
+        measure_positions(result, self._mission, self.trace)
         if self._world is not None:
             result.extra.update(self._world.stats())
         self._count_faults()
@@ -347,7 +350,7 @@ class ScenarioRun:
             if self._started_swarm and self._world is None:
                 await self._swarm.__aexit__(exc_type, exc, tb)
         except LayerError as error:  # a failure that running did not raise
-            _failed(self.result, error)
+            mark_failed(self.result, error)
         finally:
             if self._world is not None:
                 await self._world.close()
@@ -477,32 +480,6 @@ async def _until_done(
     return RunStatus.TIMED_OUT, None
 
 
-def _check_swaps(scenario: Scenario, mission: Mission) -> None:
-    """Every robot has the stack's height and, at each replaced level, the scenario's class.
-
-    Raises:
-        ConfigurationError: the app built a robot without ``setup.layer(...)``.
-    """
-    if not scenario.layers:
-        return
-    names = [slot.name for slot in getattr(scenario.app, "stack", ())]
-    for robot in mission.robots:
-        built = robot.layers
-        if len(built) != len(names):
-            raise ConfigurationError(
-                f"{scenario.path}: layers: {scenario.app.name} built robot {robot.robot_id} with "
-                f"{len(built)} layers, but its stack names {len(names)}"
-            )
-        for name, cls in scenario.layers.items():
-            level = names.index(name)
-            if not isinstance(built[level], cls):
-                raise ConfigurationError(
-                    f"{scenario.path}: layers.{name}: {scenario.app.name} built robot "
-                    f"{robot.robot_id}'s level {level} as {type(built[level]).__qualname__}, "
-                    f"not {cls.__qualname__}: build each level with setup.layer(SLOT)"
-                )
-
-
 def _objective_of(mission: Mission, scenario: Scenario) -> Objective:
     """The mission's objective: its own, or retiring its ``target`` items."""
     if mission.objective is not None:
@@ -510,80 +487,3 @@ def _objective_of(mission: Mission, scenario: Scenario) -> Objective:
     if mission.target is None:  # Mission refuses neither, but it is not frozen
         raise ConfigurationError(f"{scenario.app.name}: the mission has no target nor objective")
     return Items(mission.target, getattr(scenario.app, "item_name", "item"))
-
-
-@final
-class _RunWatch:
-    """What a run gives its objective to report to (see :class:`Watch`)."""
-
-    __slots__ = ("_clock", "_environment", "changed", "completed", "exchanged")
-
-    def __init__(
-        self,
-        environment: Environment,
-        clock: Clock,
-        *,
-        changed: Callable[[float], None],
-        completed: Callable[[float], None],
-        exchanged: Callable[[float, int], None],
-    ) -> None:
-        self._environment = environment
-        self._clock = clock
-        self.changed = changed
-        self.completed = completed
-        self.exchanged = exchanged
-
-    @property
-    def environment(self) -> Environment:
-        return self._environment
-
-    @property
-    def clock(self) -> Clock:
-        return self._clock
-
-
-def _failed(result: RunResult, error: BaseException) -> None:
-    """Marks the run failed, with the error and the traceback of what raised."""
-    result.status, result.error = RunStatus.FAILED, str(error)
-    cause = error.__cause__ or error
-    result.traceback = "".join(traceback.format_exception(cause)).rstrip()
-
-
-def _measure(
-    result: RunResult,
-    mission: Mission,
-    objective: Objective,
-    counts: tuple[dict[str, dict[str, int]], dict[str, int]],
-    environment: Environment,
-    now: float,
-) -> None:
-    """Measures the run as it ended: the objective's figures, distances and messages."""
-    result.sim_time = now
-    result.distance = {
-        robot_id: travelled
-        for robot_id, travelled in environment.distances(now).items()
-        if environment.is_mobile(robot_id)
-    }
-    objective.measure(result, now)
-    messages, errors = counts
-    result.messages_internal = dict(sorted(messages["internal"].items()))
-    result.messages_external = dict(sorted(messages["external"].items()))
-    result.protocol_errors = dict(sorted(errors.items()))
-    if mission.extra is not None:
-        result.extra.update(mission.extra())
-
-
-def _measure_positions(result: RunResult, mission: Mission, trace: Trace) -> None:
-    """Evaluates the mission's measures on every sample and snapshot of ``trace``."""
-    ids, times = trace.ids, trace.times
-    since = result.sim_time * 2 / 3  # the last third of the run
-    for name, measure in mission.measures.items():
-        values = [float(measure(ids, xy)) for xy in trace.positions]
-        result.series[name] = {"t": times.tolist(), "value": values}
-        late = [v for t, v in zip(times.tolist(), values, strict=True) if t >= since]
-        if late:
-            result.metrics[name] = math.fsum(late) / len(late)
-        result.by_exchange[name] = {
-            "count": [float(n) for n in trace.exchange_counts.tolist()],
-            "value": [float(measure(ids, xy)) for xy in trace.exchange_positions],
-        }

@@ -405,7 +405,9 @@ def test_an_app_that_ignores_the_replacement_is_refused_before_the_start(
 ) -> None:
     path = write(f'app = "{SWAPS}:stubborn"\n[layers]\ntask = "{SWAPS}.CountingTask"')
     scenario = load_scenario(path, ["run.virtual=true", "run.transport=memory"])
-    with pytest.raises(
-        ConfigurationError, match=r"layers\.task: .* built robot 1's level 3 as Task"
-    ):
+    with pytest.raises(ConfigurationError) as caught:
         ScenarioRun(scenario)
+    assert str(caught.value) == (
+        f"{path}: layers.task: robot 1's level 3 was built as Task, not CountingTask: "
+        "the app must build each level with setup.layer(SLOT)"
+    )
