@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import ctypes
+import importlib
 import json
 import statistics
 import sys
@@ -194,3 +195,37 @@ def main(benches: Sequence[Bench], argv: Sequence[str] | None = None) -> int:
     for row in rows:
         print(json.dumps(row))
     return 0 if all(r["passed"] for r in rows) else 1
+
+
+@dataclass(frozen=True, slots=True)
+class OptionalPackage:
+    """A package some benches need: whether it imports, and what to say when it does not.
+
+    Attributes:
+        missing: why it cannot be imported, ``None`` when it can.
+        benches: the benches that need it.
+        extra: the pyproject extra that installs it.
+    """
+
+    missing: str | None
+    benches: tuple[str, ...]
+    extra: str
+
+    @classmethod
+    def probe(
+        cls, module: str, package: str, benches: Sequence[str], extra: str
+    ) -> OptionalPackage:
+        """Imports ``module`` once (``package`` is its distribution's name, for the message)."""
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            return cls(f"{package} is not importable ({exc})", tuple(benches), extra)
+        return cls(None, tuple(benches), extra)
+
+    def skip_message(self) -> str:
+        """Why the benches are skipped, for the caller to print (empty when they are not)."""
+        if self.missing is None:
+            return ""
+        return (
+            f"skipping {', '.join(self.benches)}: {self.missing}; pip install -e '.[{self.extra}]'"
+        )

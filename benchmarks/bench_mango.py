@@ -31,12 +31,11 @@ module still imports, :func:`available` is false and :data:`BENCHES` is empty.
 from __future__ import annotations
 
 import asyncio
-import importlib
 import sys
 
 from cas_async import MemoryTransport, Robot
 
-from ._common import MESSAGES, Bench, main
+from ._common import MESSAGES, Bench, OptionalPackage, main
 from .bench_external import RECEIVER, SENDER, STALL
 from .bench_processes import (
     FinalAckReceiver,
@@ -55,27 +54,22 @@ __all__ = [
     "skip_message",
 ]
 
-try:
-    importlib.import_module("mango")
-except ImportError as exc:
-    _MISSING: str | None = f"mango-agents is not importable ({exc})"
-else:
-    _MISSING = None
+_PACKAGE = OptionalPackage.probe(
+    "mango",
+    "mango-agents",
+    ("mango_one_process", "mango_one_process_bytes", "mango_processes"),
+    extra="bench",
+)
 
 
 def available() -> bool:
     """Whether mango-agents can be imported, so the benches of this module can run."""
-    return _MISSING is None
+    return _PACKAGE.missing is None
 
 
 def skip_message() -> str:
     """Why :data:`BENCHES` is empty, for the caller to print (empty when it is not)."""
-    if _MISSING is None:
-        return ""
-    return (
-        "skipping mango_one_process, mango_one_process_bytes, mango_processes: "
-        f"{_MISSING}; pip install -e '.[bench]'"
-    )
+    return _PACKAGE.skip_message()
 
 
 def _check(what: str, received: int, total: int) -> None:

@@ -47,7 +47,6 @@ without it this module still imports, :func:`available` is false and
 from __future__ import annotations
 
 import asyncio
-import importlib
 import itertools
 import os
 import socket
@@ -58,7 +57,7 @@ from contextlib import asynccontextmanager
 
 from cas_async import ConfigurationError, Layer, Message, Robot, UdpTransport, ZenohTransport
 
-from ._common import LOOPBACK, MESSAGES, Bench, main
+from ._common import LOOPBACK, MESSAGES, Bench, OptionalPackage, main
 from .bench_external import (
     RECEIVER,
     SENDER,
@@ -98,27 +97,22 @@ KNOW_LIMIT = 10.0  # seconds for two Zenoh robots to see each other's tokens
 PORT_ATTEMPTS = 5  # a port picked free may be taken before the session listens on it
 _namespaces = itertools.count()
 
-try:
-    importlib.import_module("zenoh")
-except ImportError as exc:
-    _MISSING: str | None = f"eclipse-zenoh is not importable ({exc})"
-else:
-    _MISSING = None
+_PACKAGE = OptionalPackage.probe(
+    "zenoh",
+    "eclipse-zenoh",
+    ("zenoh_throughput", "zenoh_rtt", "zenoh_processes", "zenoh_processes_rtt"),
+    extra="zenoh",
+)
 
 
 def available() -> bool:
     """Whether eclipse-zenoh can be imported, so the benches of this module can run."""
-    return _MISSING is None
+    return _PACKAGE.missing is None
 
 
 def skip_message() -> str:
     """Why :data:`BENCHES` is empty, for the caller to print (empty when it is not)."""
-    if _MISSING is None:
-        return ""
-    return (
-        "skipping zenoh_throughput, zenoh_rtt, zenoh_processes, zenoh_processes_rtt: "
-        f"{_MISSING}; pip install -e '.[zenoh]'"
-    )
+    return _PACKAGE.skip_message()
 
 
 # -- helpers shared with the peer ---------------------------------------------------------
