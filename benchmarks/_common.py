@@ -18,9 +18,10 @@ import sys
 from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
 
-from cas_async import Message, loop_factory, message, spec_of, uvloop_available
-from cas_async._message import specs_for
-from cas_async.transport import stack_fingerprint
+import msgpack
+
+from cas_async import Message, loop_factory, uvloop_available
+from cas_async.transport import Codec
 
 from ._table import print_aligned
 
@@ -29,7 +30,6 @@ SOCKET_BUFFER = 4 * 1024 * 1024  # what UdpTransport asks for; the baselines ask
 WAIT_LIMIT = 60.0  # seconds any one measurement may take before it is abandoned
 
 
-@message(name="BenchSample")
 class Sample(Message):
     """The typical message: 2 floats, an int, a bool, a short str, 10 ints."""
 
@@ -41,7 +41,6 @@ class Sample(Message):
     values: list[int]
 
 
-@message(name="BenchAck")
 class Ack(Message):
     """Flow control: how many messages the receiver has seen so far."""
 
@@ -50,10 +49,13 @@ class Ack(Message):
 
 MESSAGES = [Sample, Ack]
 VALUES = list(range(10))
-SAMPLE_ID = spec_of(Sample).type_id
-ACK_ID = spec_of(Ack).type_id
-# The fingerprint of a one-layer robot with MESSAGES: the raw sides just carry it.
-RAW_FINGERPRINT = stack_fingerprint(1, specs_for(MESSAGES))
+SAMPLE_TAG = Sample.__struct_config__.tag
+ACK_TAG = Ack.__struct_config__.tag
+# The fingerprint of a one-layer robot with MESSAGES, which every datagram begins
+# with: the raw sides just carry it.
+RAW_PREFIX = Codec(1, MESSAGES).fingerprint.to_bytes(4, "big")
+PREFIX = len(RAW_PREFIX)
+N_AT, ID_AT, COUNT_AT = 3, 8, 1  # where a raw Sample's n and msg_id are, and an Ack's count
 
 
 def sample(n: int) -> Sample:
@@ -63,16 +65,28 @@ def sample(n: int) -> Sample:
 def raw_sample(n: int, robot_id: int = 1, corr_id: int = 0) -> list[object]:
     """What the framework puts on the wire for ``sample(n)``, as a plain list.
 
-    The raw baselines send the same 8 header ints (fingerprint, type id, msg_id,
-    msg_type, robot_id, src_layer, dst_layer, corr_id) and the same 6 fields, so
-    both sides move the same bytes and only the framework's overhead differs.
+    The raw baselines send the same tag, the same 6 fields and the same 6 header
+    ints (msg_type, msg_id, robot_id, src_layer, dst_layer, corr_id) behind the
+    same fingerprint (:func:`raw_pack`), so both sides move the same bytes and
+    only the framework's overhead differs.
     """
-    return [RAW_FINGERPRINT, SAMPLE_ID, n, 1, robot_id, 0, 0, corr_id,
-            1.5, -2.25, n, True, "robot-7", VALUES]  # fmt: skip
+    return [SAMPLE_TAG, 1.5, -2.25, n, True, "robot-7", VALUES,
+            1, n, robot_id, 0, 0, corr_id]  # fmt: skip
 
 
 def raw_ack(count: int, robot_id: int = 2) -> list[object]:
-    return [RAW_FINGERPRINT, ACK_ID, count, 1, robot_id, 0, 0, 0, count]
+    return [ACK_TAG, count, 1, count, robot_id, 0, 0, 0]
+
+
+def raw_pack(values: list[object]) -> bytes:
+    """A raw datagram: the fingerprint, then the values packed by ``msgpack.packb``."""
+    return RAW_PREFIX + msgpack.packb(values)
+
+
+def raw_unpack(data: bytes) -> list[object]:
+    """The values of a raw datagram (``msgpack.unpackb`` after the fingerprint)."""
+    values: list[object] = msgpack.unpackb(data[PREFIX:])
+    return values
 
 
 # A measurement gets the problem size and returns one figure (see Bench.unit).

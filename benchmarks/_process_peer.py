@@ -23,12 +23,10 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-import msgpack
-
 import cas_async
 from cas_async import Robot, UdpDirectory, UdpTransport
 
-from ._common import LOOPBACK, MESSAGES, pin_malloc, raw_ack
+from ._common import LOOPBACK, MESSAGES, pin_malloc, raw_ack, raw_pack
 from .bench_external import ACK_EVERY, RECEIVER, SENDER, RawReceiver, open_raw
 from .bench_processes import FinalAckReceiver, bound_port
 
@@ -39,7 +37,7 @@ class _RawReceiver(RawReceiver):
     def datagram_received(self, data: bytes, addr: Any) -> None:
         super().datagram_received(data, addr)
         if self.count == self.total and self.total % ACK_EVERY:
-            self.transport.sendto(msgpack.packb(raw_ack(self.count, RECEIVER)), addr)
+            self.transport.sendto(raw_pack(raw_ack(self.count, RECEIVER)), addr)
 
 
 async def stdin_closed() -> None:

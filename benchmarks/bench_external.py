@@ -28,19 +28,22 @@ import sys
 import time
 from typing import Any
 
-import msgpack
-
 from cas_async import Layer, Message, Robot, UdpTransport
 
 from ._common import (
+    COUNT_AT,
+    ID_AT,
     LOOPBACK,
     MESSAGES,
+    N_AT,
     SOCKET_BUFFER,
     Ack,
     Bench,
     main,
     raw_ack,
+    raw_pack,
     raw_sample,
+    raw_unpack,
     sample,
 )
 
@@ -128,14 +131,14 @@ class RawSender(asyncio.DatagramProtocol):
 
     def top_up(self) -> None:
         n, limit = self.sent, min(self.total, self.acked + WINDOW)
-        sendto, peer, packb = self.transport.sendto, self.peer, msgpack.packb
+        sendto, peer = self.transport.sendto, self.peer
         while n < limit:
-            sendto(packb(raw_sample(n, SENDER)), peer)
+            sendto(raw_pack(raw_sample(n, SENDER)), peer)
             n += 1
         self.sent = n
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        self.acked = msgpack.unpackb(data)[-1]
+        self.acked = raw_unpack(data)[COUNT_AT]  # type: ignore[assignment]
         self.top_up()
 
 
@@ -147,10 +150,10 @@ class RawReceiver(asyncio.DatagramProtocol):
         self.transport: Any = None
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        msgpack.unpackb(data)
+        raw_unpack(data)
         self.count = count = self.count + 1
         if count % ACK_EVERY == 0:
-            self.transport.sendto(msgpack.packb(raw_ack(count, RECEIVER)), addr)
+            self.transport.sendto(raw_pack(raw_ack(count, RECEIVER)), addr)
         if count == self.total:
             self.done.set_result(time.perf_counter())
 
@@ -224,7 +227,7 @@ class RawAsker(asyncio.DatagramProtocol):
     waiter: asyncio.Future[Any] | None = None
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        reply = msgpack.unpackb(data)
+        reply = raw_unpack(data)
         waiter, self.waiter = self.waiter, None
         if waiter is not None and not waiter.done():
             waiter.set_result(reply)
@@ -235,13 +238,13 @@ class RawAnswerer(asyncio.DatagramProtocol):
         self.inbox: asyncio.Queue[tuple[list[Any], Any]] = asyncio.Queue()
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
-        self.inbox.put_nowait((msgpack.unpackb(data), addr))
+        self.inbox.put_nowait((raw_unpack(data), addr))
 
 
 async def answer(transport: asyncio.DatagramTransport, inbox: asyncio.Queue[Any]) -> None:
     while True:
         request, addr = await inbox.get()
-        transport.sendto(msgpack.packb(raw_sample(request[10], RECEIVER, request[2])), addr)
+        transport.sendto(raw_pack(raw_sample(request[N_AT], RECEIVER, request[ID_AT])), addr)
 
 
 async def baseline_rtt(rounds: int) -> float:
@@ -256,7 +259,7 @@ async def baseline_rtt(rounds: int) -> float:
         for n in range(WARMUP + rounds):
             t = time.perf_counter()
             waiter = asker.waiter = loop.create_future()
-            ask_transport.sendto(msgpack.packb(raw_sample(n, SENDER)), peer)
+            ask_transport.sendto(raw_pack(raw_sample(n, SENDER)), peer)
             await waiter
             latencies.append(time.perf_counter() - t)
     finally:

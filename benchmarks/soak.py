@@ -46,7 +46,6 @@ from cas_async import (
     Swarm,
     UdpTransport,
     loop_factory,
-    message,
     uvloop_available,
 )
 from cas_async.transport._fd_limit import ensure_descriptors
@@ -63,7 +62,6 @@ PAGE = os.sysconf("SC_PAGE_SIZE")
 MIB = 1024 * 1024
 
 
-@message(name="SoakNote")
 class Note(Message):
     """The periodic message to a neighbour."""
 
@@ -71,7 +69,6 @@ class Note(Message):
     text: str
 
 
-@message(name="SoakPing")
 class Ping(Message):
     """A request, and its reply."""
 

@@ -16,7 +16,6 @@ from . import _interrupts
 
 _interrupts.exit_on_signal_while_importing()
 
-from ._bounds import Bounds, Finite
 from ._clock import Clock, ScaledClock, VirtualClock
 from ._counters import LayerCounters
 from ._errors import (
@@ -36,7 +35,7 @@ from ._errors import (
     UnknownRobotError,
 )
 from ._layer import Layer
-from ._message import Message, MessageSpec, MsgType, message, spec_of
+from ._message import Finite, Message, MsgType, finite, message
 from ._middleware import Hands, Middleware
 from ._pose import Pose
 from ._positions import Positions
@@ -66,7 +65,6 @@ __version__ = "0.1.0"
 __all__ = [
     "Address",
     "AuthenticatedTransport",
-    "Bounds",
     "CasError",
     "Clock",
     "ConfigurationError",
@@ -88,7 +86,6 @@ __all__ = [
     "MemoryTransport",
     "Message",
     "MessageDefinitionError",
-    "MessageSpec",
     "Middleware",
     "MsgType",
     "PiecewiseSpeed",
@@ -116,9 +113,9 @@ __all__ = [
     "VirtualClock",
     "VirtualTimeLoop",
     "ZenohTransport",
+    "finite",
     "loop_factory",
     "message",
     "run",
-    "spec_of",
     "uvloop_available",
 ]

@@ -1,53 +1,40 @@
-"""The msgpack wire format of external messages, with limits and strict decoding.
+"""The wire format of external messages, with limits and strict decoding.
 
-A datagram is one msgpack array::
+A datagram is the sender's stack fingerprint (4 bytes, big-endian), then the
+message as one msgpack array, as msgspec encodes a :class:`~cas_async.Message`::
 
-    [fingerprint, type_id, msg_id, msg_type, robot_id, src_layer, dst_layer, corr_id, *fields]
+    fingerprint | [tag, *fields, msg_type, msg_id, robot_id, src_layer, dst_layer, corr_id]
 
-Most messages take a fast path built on msgspec (see :mod:`cas_async._codegen`):
-encoding packs the header and fields, once a generated check has vouched for
-their types, and decoding reads the fingerprint and type id, then parses the
-whole datagram against the class's exact wire types in C. Anything that path
-declines takes the precise one: a reused ``msgpack.Packer``, or a bounded read of
-the datagram item by item (:mod:`cas_async._datagram`: arrays as tuples) followed
-by a decoder generated once per message class, which checks simple fields with
-inlined ``type(v) is int`` tests and calls the converters of :mod:`cas_async._schema`
-when a field needs it. Both paths give the same message or the same error; only
-their cost differs. Every problem with untrusted bytes raises
+What stays ours is small: the fingerprint prefix and the size limit, both checked
+before anything is decoded, and the stable drop reasons users monitor
+(:attr:`DecodeError.REASONS <cas_async.DecodeError>`), mapped from msgspec's
+errors. The rest is msgspec's: one ``Decoder`` over the union of a stack's
+messages parses the array in C, the tag picking the class, every field checked
+against its declared type and bounds. Every problem with untrusted bytes raises
 :class:`~cas_async._errors.DecodeError`; nothing is ever unpickled.
 
-Decoding is bounded whatever a datagram claims. Memory: see
-:attr:`Codec.max_decode_bytes`. Time: the precise path first checks the whole
-structure without building anything (a few nanoseconds a byte), then builds only
-what the header and the class's declared field types call for, so a hostile
-datagram costs about what a well-formed one of its size does.
+Decoding is bounded whatever a datagram claims: msgspec checks every length
+against the bytes present before it builds anything, so a hostile datagram costs
+about what a well-formed one of its size does, and memory is bounded by
+:attr:`Codec.max_decode_bytes`.
 """
 
 from __future__ import annotations
 
+import re
+import sys
 import threading
-from collections.abc import Callable, Iterable, Mapping
-from typing import Any, Final
+from collections.abc import Iterable
+from typing import Any, Final, Union
 
-import msgpack
 import msgspec
 import numpy as np
 
-from ._codegen import HEADER_LEN, compiled, undispatchable, wrong_arity
-from ._datagram import FieldPlan, read_datagram
-from ._errors import DecodeError, EncodeError
-from ._fingerprint import stack_fingerprint
-from ._message import (
-    Message,
-    MessageSpec,
-    nested_to_wire,
-    registry_generation,
-    spec_of,
-    specs_for,
-)
-from ._schema import ndarray_to_wire
+from ._errors import DecodeError, EncodeError, MessageDefinitionError, StackMismatchError
+from ._fingerprint import describe_fingerprint, stack_fingerprint
+from ._message import HEADER_FIELDS, Message, all_messages, wire_name
 
-__all__ = ["DEFAULT_MAX_DATAGRAM", "MIN_DATAGRAM", "Codec"]
+__all__ = ["DEFAULT_MAX_DATAGRAM", "MIN_DATAGRAM", "PREFIX", "Codec"]
 
 DEFAULT_MAX_DATAGRAM: Final = 64 * 1024
 """Largest datagram encoded or accepted, in bytes, unless configured otherwise."""
@@ -55,109 +42,90 @@ DEFAULT_MAX_DATAGRAM: Final = 64 * 1024
 MIN_DATAGRAM: Final = 64
 """Smallest datagram limit accepted: below it not even a header with a small field fits."""
 
-_BYTES_PER_BYTE: Final = 256
+PREFIX: Final = 4
+"""Bytes of the fingerprint that begins every datagram."""
+
+_BYTES_PER_BYTE: Final = 128
 """Most bytes of Python objects one datagram byte decodes into, with margin.
 
-Worst cases measured with tracemalloc (tests/test_decode_limits.py): arrays nested
-in arrays, one byte each, in a bare ``list`` field, about 140 bytes per byte (a
-tuple from msgpack, then the list it becomes); chains of one-entry maps, two bytes
-each, about 115; empty maps (one byte each) about 80.
+Worst cases measured with tracemalloc (tests/test_decode_limits.py): empty maps in
+a bare ``list`` field (one byte each, a dict each) and arrays nested in arrays.
 """
 
-_RESERVED_PER_ITEM: Final = 8
-"""What msgpack reserves per array item it reads (one pointer), before building it."""
-
 _DECODE_OVERHEAD: Final = 256 * 1024
-_SHARED_CODECS: Final = 32  # stacks whose codec a thread keeps (Codec.shared)
+"""Fixed allowance of a decode: decoder state, one error message."""
+
+_SHARED_CODECS: Final = 32
+"""Stacks whose codec a thread keeps (:meth:`Codec.shared`)."""
+
 _per_thread: Final = threading.local()
-"""Fixed allowance of a decode: unpacker state, frames, one error message."""
 
-
-def _encode_default(obj: Any) -> Any:
-    """Packs what msgpack cannot: nested messages, numpy arrays and scalars."""
-    if isinstance(obj, Message):
-        return nested_to_wire(obj)
-    if isinstance(obj, np.ndarray):
-        return ndarray_to_wire(obj)
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, int):  # msgpack calls us for ints it cannot carry
-        raise OverflowError(f"{obj} is outside the 64-bit integer range msgpack carries")
-    raise TypeError(f"cannot encode a value of type {type(obj).__qualname__}")
+_PATH: Final = re.compile(r" - at `\$\[(\d+)\]([^`]*)`$")
+_FINITE: Final = re.compile(
+    "`float` (>= |<= )" + re.escape(repr(sys.float_info.max)).replace("1", "-?1", 1)
+)
+"""How msgspec words a bound of :data:`~cas_async.Finite` (said "a finite float" instead)."""
+_BOUND: Final = re.compile(r"^Expected `\w+` (>=|<=|>|<) ")
+_ARRAY_HEADS: Final = frozenset(range(0x90, 0xA0)) | {0xDC, 0xDD}
+"""First bytes of a msgpack array: what follows a fingerprint in any stack's datagram."""
+_RAW_ITEMS: Final = msgspec.msgpack.Decoder(list[msgspec.Raw])
+_NUMERIC_KINDS: Final = frozenset("biufc")
+_DTYPE_TEXT: Final = re.compile(r"[<>|=]?[biufc][0-9]{1,2}")
+_MAX_NDIM: Final = 32
 
 
 class Codec:
-    """Encodes and decodes the external messages of one robot.
+    """Encodes and decodes the external messages of one robot's stack.
 
     Decoding a datagram never allocates more than :attr:`max_decode_bytes` bytes,
     whatever it claims (arrays or maps of 2**32 items, strings of 4 GiB, arrays
     nested 1024 deep, numpy arrays of 10**9 elements)::
 
-        max_decode_bytes = (8 + 1 + 256) * max_size + 256 KiB
-
-    Every length a datagram claims is checked against the bytes present before
-    anything is built, so msgpack reserves at most 8 bytes per item there is (the
-    first term), its buffer holds one copy of the datagram (the second), and the
-    Python objects built take at most 256 bytes per byte; the last is a fixed
-    allowance. With the default 64 KiB datagrams that is about 17 MiB, all of it
-    freed when ``decode`` returns.
+        max_decode_bytes = 128 * max_size + 256 KiB
 
     Args:
-        specs: the message types this robot accepts, by type id.
-        fingerprint: this robot's stack fingerprint (see :func:`stack_fingerprint`).
+        layers: the number of layers of the stack.
+        messages: the message classes the stack uses (default: every one defined).
         max_size: largest datagram, in bytes, encoded or accepted.
+
+    Raises:
+        MessageDefinitionError: a class is not a message, or two have one tag.
+        ValueError: ``max_size`` is below :data:`MIN_DATAGRAM`.
     """
 
     passes_objects = False
     """Receivers get bytes, never the objects sent."""
 
     __slots__ = (
-        "_arity",
-        "_by_class",
-        "_by_id",
-        "_fast",
-        "_fast_encoders",
-        "_fast_pack",
-        "_pack",
-        "_plans",
-        "_prefix_length",
-        "_prefix_lengths",
+        "_by_tag",
+        "_classes",
+        "_decode",
+        "_encode",
+        "_prefix",
         "fingerprint",
         "max_size",
     )
 
     def __init__(
         self,
-        specs: Mapping[int, MessageSpec],
-        fingerprint: int,
+        layers: int,
+        messages: Iterable[type[Message]] | None = None,
         max_size: int = DEFAULT_MAX_DATAGRAM,
     ) -> None:
         if max_size < MIN_DATAGRAM:
             raise ValueError(f"max_size must be at least {MIN_DATAGRAM} bytes, got {max_size}")
-        self.fingerprint = fingerprint
+        classes = all_messages() if messages is None else tuple(dict.fromkeys(messages))
+        self._by_tag = _by_tag(classes)
+        self._classes = frozenset(classes)
+        self.fingerprint = stack_fingerprint(layers, classes)
         self.max_size = max_size
-        generated = [compiled(spec) for spec in specs.values()]
-        self._by_id = {c.spec.type_id: c.decode for c in generated}
-        self._arity = {c.spec.type_id: (c.spec.name, len(c.spec.field_names)) for c in generated}
-        # Per type id, how the precise path reads each field (see _datagram).
-        self._plans = {c.spec.type_id: _plans(c.spec) for c in generated}
-        self._by_class = {c.spec.cls: c for c in generated}
-        # A datagram of a fast class starts with bytes known in advance: the array
-        # header (its arity is fixed), our fingerprint, its type id. Those bytes pick
-        # the class; a datagram whose start is anything else takes the precise path.
-        self._fast: dict[bytes, tuple[Callable[[bytes], Any], Callable[[Any], Message]]] = {
-            _prefix(c.spec, fingerprint): (c.fast_decode, c.build)
-            for c in generated
-            if c.fast_decode is not None and c.build is not None
-        }
-        lengths = sorted({len(prefix) for prefix in self._fast}, reverse=True)
-        self._prefix_length = lengths.pop() if lengths else 0
-        self._prefix_lengths = tuple(lengths)  # others, for type ids of other sizes
-        self._fast_encoders = {
-            c.spec.cls: c.fast_encode for c in generated if c.fast_encode is not None
-        }
-        self._pack = msgpack.Packer(default=_encode_default, use_bin_type=True).pack
-        self._fast_pack = msgspec.msgpack.Encoder().encode
+        self._prefix = self.fingerprint.to_bytes(PREFIX, "big")
+        if classes:
+            union: Any = Union[tuple(classes)]  # noqa: UP007 - a union made at run time
+            self._decode = msgspec.msgpack.Decoder(union, dec_hook=_decode_custom).decode
+        else:
+            self._decode = _no_message
+        self._encode = msgspec.msgpack.Encoder(enc_hook=_encode_custom).encode
 
     @classmethod
     def for_stack(
@@ -171,8 +139,7 @@ class Codec:
         What a robot so made encodes, this codec encodes byte for byte: a test or a
         transport author can craft datagrams a robot of that stack accepts.
         """
-        specs = specs_for(messages)
-        return cls(specs, stack_fingerprint(layers, specs), max_size)
+        return cls(layers, messages, max_size)
 
     @classmethod
     def shared(
@@ -183,17 +150,17 @@ class Codec:
     ) -> Codec:
         """:meth:`for_stack`, made once per thread for robots of one stack to share.
 
-        A codec holds nothing of a robot's, and making one costs about 0.5 ms (a
-        decoder per field): ten thousand robots of one stack share one. Shared
-        within a thread only, as the packer it holds is not thread-safe.
+        A codec holds nothing of a robot's, and making one builds a decoder: ten
+        thousand robots of one stack share one. Shared within a thread only.
         """
-        key = (layers, messages, registry_generation() if messages is None else 0, max_size)
+        classes = all_messages() if messages is None else messages
+        key = (layers, classes, max_size)
         codecs: dict[Any, Codec] | None = getattr(_per_thread, "codecs", None)
         if codecs is None:
             codecs = _per_thread.codecs = {}
         codec = codecs.get(key)
         if codec is None:
-            codec = cls.for_stack(layers, messages, max_size)
+            codec = cls(layers, classes, max_size)
             if len(codecs) >= _SHARED_CODECS:  # bounded: tests make stacks by the hundred
                 del codecs[next(iter(codecs))]
             codecs[key] = codec
@@ -202,13 +169,12 @@ class Codec:
     @property
     def message_classes(self) -> frozenset[type[Message]]:
         """The message classes this codec carries."""
-        return frozenset(self._by_class)
+        return self._classes
 
     @property
     def max_decode_bytes(self) -> int:
         """Most bytes decoding one datagram allocates at once (see the class docs)."""
-        per_byte = _RESERVED_PER_ITEM + 1 + _BYTES_PER_BYTE  # reservations, buffer, objects
-        return per_byte * self.max_size + _DECODE_OVERHEAD
+        return _BYTES_PER_BYTE * self.max_size + _DECODE_OVERHEAD
 
     def encode(self, msg: Message) -> bytes:
         """The datagram for ``msg``.
@@ -217,29 +183,15 @@ class Codec:
             EncodeError: a field holds a value msgpack cannot carry, the message type
                 is not accepted by this robot, or the datagram exceeds ``max_size``.
         """
-        fast = self._fast_encoders.get(type(msg))
-        if fast is not None:
-            data = fast(msg, self.fingerprint, self._fast_pack)
-            if data is not None and len(data) <= self.max_size:
-                return data
-        return self._encode_precisely(msg)
-
-    def _encode_precisely(self, msg: Message) -> bytes:
-        """Encodes with msgpack: the datagram, or the precise error."""
-        entry = self._by_class.get(type(msg))
-        if entry is None:
-            spec = spec_of(type(msg))  # raises when @message was forgotten
-            raise EncodeError(f"{spec.name} is not among the messages this robot's stack accepts")
+        if type(msg) not in self._classes:
+            raise EncodeError(self._not_ours(msg))
         try:
-            data = entry.encode(msg, self.fingerprint, self._pack)
-        except (TypeError, ValueError, OverflowError) as exc:
-            raise EncodeError(
-                f"cannot encode {entry.spec.name}: {_which_field(msg, entry.spec)}{exc}"
-            ) from exc
+            data = self._prefix + self._encode(msg)
+        except (TypeError, ValueError, OverflowError, msgspec.EncodeError) as exc:
+            raise EncodeError(f"cannot encode {_named(msg)}: {_which_field(msg)}{exc}") from exc
         if len(data) > self.max_size:
             raise EncodeError(
-                f"{entry.spec.name} encodes to {len(data)} bytes, "
-                f"above the limit of {self.max_size}"
+                f"{_named(msg)} encodes to {len(data)} bytes, above the limit of {self.max_size}"
             )
         return data
 
@@ -247,67 +199,132 @@ class Codec:
         """The message in ``data``; ``DecodeError`` for anything malformed.
 
         Raises:
-            StackMismatchError: well-formed, but from a robot with another stack.
+            StackMismatchError: a datagram from a robot with another stack.
             DecodeError: anything else wrong, with a ``reason`` for counters.
         """
-        if len(data) > self.max_size:
-            raise DecodeError(f"{len(data)} bytes, above the limit of {self.max_size}", "oversize")
         if type(data) is not bytes:
-            data = bytes(data)  # a bytearray or memoryview: its slices are not hashable
-        fast = self._fast.get(data[: self._prefix_length])
-        if fast is None and self._prefix_lengths:
-            fast = next(
-                filter(None, (self._fast.get(data[:n]) for n in self._prefix_lengths)), None
-            )
-        if fast is not None:
-            try:
-                row = fast[0](data)
-            except Exception:  # refused, or nested too deep: the precise path explains
-                return self._decode_precisely(data)
-            return fast[1](row)
-        return self._decode_precisely(data)
-
-    def _decode_precisely(self, data: bytes) -> Message:
-        """Decodes with the generated checks: the precise error, or the message.
-
-        Read item by item (see :mod:`cas_async._datagram`), so that a hostile
-        datagram costs about what a well-formed one of its size does.
-        """
-        header, fields, count = read_datagram(data, self._plans.get)
-        fingerprint = self.fingerprint
-        if fields is None:  # a header only: too short, another stack, unknown type, arity
-            arity = self._arity.get(header[1]) if len(header) == HEADER_LEN else None
-            if arity is None:
-                raise undispatchable(header, fingerprint)
-            raise wrong_arity(*arity, header, count, fingerprint)
+            data = bytes(data)  # a bytearray or memoryview
+        if len(data) > self.max_size or data[:PREFIX] != self._prefix:
+            raise self._refused(data)
         try:
-            return self._by_id[header[1]]((*header, *fields), fingerprint)
+            msg: Message = self._decode(data[PREFIX:])
         except DecodeError:
             raise
+        except msgspec.ValidationError as exc:
+            raise self._invalid(str(exc), data) from None
+        except msgspec.DecodeError as exc:
+            raise DecodeError(f"malformed: {exc}", "malformed") from None
         except RecursionError:  # bare list/dict fields or recursive messages, nested deeply
             raise DecodeError("values nest too deeply", "wrong_type") from None
-        except Exception as exc:  # a converter's oversight must not reach the robot
-            raise DecodeError(f"cannot decode: {_brief_error(exc)}") from None
+        except Exception as exc:  # a __post_init__ or hook's oversight must not reach a robot
+            raise DecodeError(f"cannot decode: {_brief_error(exc)}", "wrong_type") from None
+        if msg.msg_id > 0:
+            return msg
+        # The header is missing: trailing fields take their defaults when absent.
+        raise DecodeError(f"bad header: {type(msg).__name__} has no message id", "bad_header")
 
+    def _not_ours(self, msg: object) -> str:
+        if not isinstance(msg, Message):
+            return f"{type(msg).__qualname__} is not a message (a subclass of cas_async.Message)"
+        return f"{wire_name(type(msg))} is not among the messages this robot's stack accepts"
 
-def _plans(spec: MessageSpec) -> tuple[FieldPlan, ...]:
-    """How the precise path reads each field of ``spec`` (see :mod:`cas_async._datagram`)."""
-    return tuple(
-        FieldPlan(
-            f"{spec.name}.{name}",
-            kind.scalar,
-            None if kind.wire is None else msgspec.msgpack.Decoder(kind.wire).decode,
+    def _refused(self, data: bytes) -> DecodeError:
+        """Why a datagram is refused before decoding: too large, another stack's, or garbage."""
+        if len(data) > self.max_size:
+            return DecodeError(f"{len(data)} bytes, above the limit of {self.max_size}", "oversize")
+        if len(data) <= PREFIX or data[PREFIX] not in _ARRAY_HEADS:
+            return DecodeError(f"not a datagram ({len(data)} bytes)", "malformed")
+        theirs = int.from_bytes(data[:PREFIX], "big")
+        ours = self.fingerprint
+        return StackMismatchError(
+            f"datagram of stack fingerprint {theirs:#010x} ({describe_fingerprint(theirs)}), "
+            f"ours is {ours:#010x} ({describe_fingerprint(ours)})",
+            theirs,
+            ours,
         )
-        for name, kind in zip(spec.field_names, spec.field_types, strict=True)
-    )
+
+    def _invalid(self, text: str, data: bytes) -> DecodeError:
+        """Msgspec's refusal as a ``DecodeError``: the field named, the reason classified."""
+        found = _PATH.search(text)
+        if found is None:  # about the array itself (its length), or not an array
+            try:
+                items = _RAW_ITEMS.decode(data[PREFIX:])
+            except msgspec.ValidationError:
+                return DecodeError(f"not a datagram: {text}", "bad_header")
+            except (msgspec.DecodeError, RecursionError):  # it claims more than there is
+                return DecodeError(f"malformed: {text}", "malformed")
+            cls = self._class_of(data)
+            if cls is None or "length" not in text:  # pragma: no cover - msgspec read its tag
+                return DecodeError(f"not a datagram: {text}", "bad_header")
+            fields = len(cls.__struct_fields__)
+            return DecodeError(
+                f"{cls.__name__}: {text}: {len(items)} items for the tag, "
+                f"{fields - len(HEADER_FIELDS)} fields and {len(HEADER_FIELDS)} header values",
+                "wrong_arity",
+            )
+        index = int(found.group(1))
+        if index == 0:
+            return DecodeError(f"unknown message tag: {text}", "unknown_type")
+        cls = self._class_of(data)
+        if cls is None:  # pragma: no cover - msgspec read a tag it knows to get here
+            return DecodeError(text, "wrong_type")
+        names = cls.__struct_fields__
+        field = names[index - 1] if index - 1 < len(names) else "?"
+        problem = _FINITE.sub("a finite `float`", text[: found.start()])
+        where = f"{cls.__name__}.{field}{found.group(2)}: {problem}"
+        if field in HEADER_FIELDS:
+            return DecodeError(f"bad header: {where}", "bad_header")
+        return DecodeError(where, "out_of_range" if _BOUND.match(text) else "wrong_type")
+
+    def _class_of(self, data: bytes) -> type[Message] | None:
+        """The class a datagram's tag names, if it is ours (on the error path only)."""
+        try:
+            items = _RAW_ITEMS.decode(memoryview(data)[PREFIX:])
+            tag = msgspec.msgpack.decode(items[0], type=int)
+        except (msgspec.MsgspecError, IndexError, RecursionError):
+            return None
+        return self._by_tag.get(tag)
 
 
-def _prefix(spec: MessageSpec, fingerprint: int) -> bytes:
-    """How every datagram of ``spec`` begins: array header, fingerprint, type id."""
-    items = HEADER_LEN + len(spec.field_names)
-    header = bytes([0x90 | items]) if items < 16 else b"\xdc" + items.to_bytes(2, "big")
-    encoded: bytes = msgpack.packb(fingerprint) + msgpack.packb(spec.type_id)
-    return header + encoded
+def _no_message(data: Any) -> Message:
+    """The decoder of a stack without messages: whatever arrives is of no type it knows."""
+    raise DecodeError("this robot's stack has no messages", "unknown_type")
+
+
+def _by_tag(classes: tuple[type[Message], ...]) -> dict[int, type[Message]]:
+    """The stack's classes by tag; two classes with one tag cannot share a stack."""
+    found: dict[int, type[Message]] = {}
+    for cls in classes:
+        if not (isinstance(cls, type) and issubclass(cls, Message)) or cls is Message:
+            raise MessageDefinitionError(f"{cls!r} is not a message class (a Message subclass)")
+        tag: int = cls.__struct_config__.tag  # type: ignore[assignment]  # ours are ints
+        other = found.setdefault(tag, cls)
+        if other is not cls:
+            raise MessageDefinitionError(
+                f"{_where(other)} and {_where(cls)} have one tag ({tag}, wire name "
+                f"{wire_name(cls)!r}) and cannot be messages of one stack: pass "
+                "messages=[...] without one of them, or give one @message(name=...)"
+            )
+    return found
+
+
+def _where(cls: type) -> str:
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
+def _named(msg: Message) -> str:
+    return type(msg).__name__
+
+
+def _which_field(msg: Message) -> str:
+    """Names the first field msgspec refuses, to make encode errors actionable."""
+    encode = msgspec.msgpack.Encoder(enc_hook=_encode_custom).encode
+    for name in type(msg).__struct_fields__:
+        try:
+            encode(getattr(msg, name))
+        except (TypeError, ValueError, OverflowError, msgspec.EncodeError):
+            return f"field {name!r}: "
+    return ""
 
 
 def _brief_error(exc: BaseException) -> str:
@@ -316,12 +333,42 @@ def _brief_error(exc: BaseException) -> str:
     return text if len(text) <= 200 else f"{text[:200]}..."
 
 
-def _which_field(msg: Message, spec: MessageSpec) -> str:
-    """Names the first field msgpack refuses, to make encode errors actionable."""
-    pack = msgpack.Packer(default=_encode_default, use_bin_type=True).pack
-    for attr in spec.field_names:
-        try:
-            pack(getattr(msg, attr))
-        except (TypeError, ValueError, OverflowError):
-            return f"field {attr!r}: "
-    return ""
+def _encode_custom(obj: Any) -> Any:
+    """Packs what msgspec cannot: numpy arrays (``[dtype, shape, bytes]``) and scalars."""
+    if isinstance(obj, np.ndarray):
+        if obj.dtype.kind not in _NUMERIC_KINDS:
+            raise TypeError(f"cannot send an array of dtype {obj.dtype} (only numeric dtypes)")
+        return (obj.dtype.str, obj.shape, obj.tobytes())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"cannot encode a value of type {type(obj).__qualname__}")
+
+
+def _decode_custom(kind: type, value: Any) -> Any:
+    """Builds a numpy array from ``[dtype, shape, bytes]``, checked before anything is allocated.
+
+    Nothing is allocated for the array until the bytes present are exactly what
+    the dtype and shape need: a datagram claiming 10**9 elements costs nothing.
+    """
+    if kind is not np.ndarray:  # pragma: no cover - message classes refuse other custom types
+        raise TypeError(f"no decoder for {kind.__qualname__}")
+    if not (isinstance(value, list) and len(value) == 3):
+        raise TypeError("expected an ndarray as [dtype, shape, data]")
+    dtype_text, shape, data = value
+    if type(dtype_text) is not str or _DTYPE_TEXT.fullmatch(dtype_text) is None:
+        raise TypeError("expected a numeric dtype code like '<f8'")
+    if not isinstance(shape, list) or len(shape) > _MAX_NDIM:
+        raise TypeError("expected a shape of at most 32 dimensions")
+    if not all(type(n) is int and n >= 0 for n in shape) or type(data) is not bytes:
+        raise TypeError("expected a shape of non-negative ints and bytes of data")
+    dtype = np.dtype(dtype_text)
+    count = 1
+    for n in shape:
+        count *= n
+    if count * dtype.itemsize != len(data):
+        raise TypeError(f"shape {shape} of {dtype_text} does not match {len(data)} bytes")
+    try:
+        # copy(): frombuffer over bytes is read-only; users expect a normal array.
+        return np.frombuffer(data, dtype=dtype).reshape(shape).copy()
+    except ValueError:  # e.g. shape (0, 2**62, 2**62): no data, but too big for numpy
+        raise TypeError(f"bad shape {shape}") from None

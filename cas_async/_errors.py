@@ -61,7 +61,7 @@ class UnknownRobotError(CasError, LookupError):
 
 
 class MessageDefinitionError(CasError, TypeError):
-    """A ``@message`` class cannot be used (bad field type, clashing name or id)."""
+    """A message class cannot be used (bad field type, clashing name or tag)."""
 
 
 class EncodeError(CasError, ValueError):
@@ -92,17 +92,15 @@ class DecodeError(CasError, ValueError):
 
 
 class StackMismatchError(DecodeError):
-    """A well-formed datagram from a robot whose stack differs from ours.
+    """A datagram from a robot whose stack differs from ours (by its fingerprint prefix).
 
     Attributes:
-        sender: robot id claimed by the datagram.
         theirs: the sender's stack fingerprint.
         ours: this robot's stack fingerprint.
     """
 
-    def __init__(self, message: str, sender: int, theirs: int, ours: int) -> None:
+    def __init__(self, message: str, theirs: int, ours: int) -> None:
         super().__init__(message, "stack_mismatch")
-        self.sender = sender
         self.theirs = theirs
         self.ours = ours
 

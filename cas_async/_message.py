@@ -1,47 +1,63 @@
-"""Messages: the framework header, the ``Message`` base and the ``@message`` registry.
+"""Messages: the framework header and the ``Message`` base, a msgspec Struct with a stable tag.
 
-A user message is a class deriving from :class:`Message`, decorated with
-:func:`message`, whose fields are declared with annotations::
+A user message is a class deriving from :class:`Message` whose fields are declared
+with annotations, as for any msgspec Struct::
 
-    @message
     class Ping(Message):
         n: int
         note: str = ""
 
-The decorator turns the class into a slotted dataclass and registers it under a
-*stable* type id, derived from its name (or given explicitly), never from the
-order of registration: two processes that import their modules in a different
-order still agree on every id.
+    Ping(3)                      # fields are positional, the header keyword-only
+    match msg:
+        case Ping(n=n): ...
+
+Every message class gets a *stable tag* when it is defined: a 31-bit CRC of its
+wire name, which is its fully qualified name (``examples.gathering.messages.Position``)
+unless ``@message(name=...)`` gives another. Tags never depend on the order in
+which classes are defined, so two processes that import their modules in a
+different order agree on every one; a module run with ``python -m pkg.mod`` names
+its classes as when it is imported. Two different wire names with the same CRC
+are refused when the second class is defined. A class defined again under the
+same name (a module reloaded) takes the name over; two live classes with one
+name cannot be messages of one robot's stack (see :mod:`cas_async._codec`).
 
 The header (thesis Fig. 3) is filled by the runtime when the message is sent;
 users only choose ``msg_type`` (and only when they want NEGOTIATION or DENY).
+On the wire a message is a msgpack array: the tag, the fields in declaration
+order, then the header.
+
+Bounds are msgspec's own: ``Annotated[float, msgspec.Meta(ge=0)]``;
+:data:`Finite` (and :func:`finite` with bounds) refuses NaN and infinities.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 import inspect
 import reprlib
+import sys
 import typing
+import weakref
 import zlib
-from collections.abc import Callable, Iterable, Iterator
-from typing import Any, Final, TypeVar, dataclass_transform, overload
+from collections.abc import Callable
+from typing import Annotated, Any, Final, TypeVar, dataclass_transform, overload
 
-from ._errors import DecodeError, MessageDefinitionError
-from ._schema import FieldType, NestedMessages, field_type
+import msgspec
+
+from ._errors import MessageDefinitionError
+from ._fingerprint import schema_text
 
 __all__ = [
     "HEADER_FIELDS",
+    "MAX_TAG",
+    "Finite",
     "Message",
-    "MessageSpec",
     "MsgType",
+    "all_messages",
+    "field_names",
+    "finite",
     "message",
-    "nested_to_wire",
-    "registered",
-    "registry_generation",
-    "spec_of",
-    "specs_for",
+    "wire_name",
 ]
 
 
@@ -56,36 +72,159 @@ class MsgType(enum.IntEnum):
     """A refusal, typically the answer to a NEGOTIATION."""
 
 
-HEADER_FIELDS: Final = ("msg_id", "msg_type", "robot_id", "src_layer", "dst_layer", "corr_id")
+HEADER_FIELDS: Final = ("msg_type", "msg_id", "robot_id", "src_layer", "dst_layer", "corr_id")
 """Header attributes, in wire order. ``corr_id`` is the ``msg_id`` a reply answers (0: none)."""
 
-_MAX_TYPE_ID: Final = 2**31 - 1
+MAX_TAG: Final = 2**31 - 1
+"""Largest tag: tags are 31-bit CRCs of wire names (or chosen, within ``[0, MAX_TAG]``)."""
+
+_LARGEST: Final = sys.float_info.max
+
+
+def finite(
+    *,
+    ge: float | None = None,
+    gt: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+) -> msgspec.Meta:
+    """Bounds on a float that also refuse NaN and both infinities.
+
+    msgspec refuses NaN under any bound; a float with no bound on one side is
+    bounded there by the largest finite float, so infinities are refused too::
+
+        speed: Annotated[float, finite(ge=0)]      # finite and not negative
+        x: Annotated[float, Finite]                # finite: finite() with no bound
+
+    Raises:
+        ValueError: both ``ge`` and ``gt`` (or ``le`` and ``lt``) are given.
+    """
+    if ge is not None and gt is not None:
+        raise ValueError("finite(): give ge or gt, not both")
+    if le is not None and lt is not None:
+        raise ValueError("finite(): give le or lt, not both")
+    limits: dict[str, Any] = (
+        {"gt": gt} if gt is not None else {"ge": -_LARGEST if ge is None else ge}
+    )
+    limits.update({"lt": lt} if lt is not None else {"le": _LARGEST if le is None else le})
+    meta: msgspec.Meta = msgspec.Meta(**limits)
+    return meta
+
+
+Finite: Final = finite()
+"""``Annotated[float, Finite]``: no NaN, no infinity (checked when a message arrives)."""
+
+_Id = Annotated[int, msgspec.Meta(ge=0)]
+"""Message ids, and ``corr_id`` (0: not a reply), are never negative."""
 
 _SHORT: Final = reprlib.Repr()  # field values in log lines: strings and lists capped
 _SHORT.maxstring = _SHORT.maxother = 60
 _SHORT.maxlist = _SHORT.maxtuple = _SHORT.maxdict = _SHORT.maxset = 6
 _SHORT.maxlevel = 2
 
+_names: weakref.WeakKeyDictionary[type, str] = weakref.WeakKeyDictionary()
+"""The wire name of every message class (a tag's CRC input)."""
+_tags: dict[int, str] = {}
+"""Wire name by tag, of every class defined: a CRC collision of two names is refused."""
+_namespaces: weakref.WeakKeyDictionary[type, dict[str, Any]] = weakref.WeakKeyDictionary()
+"""Each class's namespace as written, so ``@message(name=...)`` can define it again."""
+_superseded: weakref.WeakSet[type] = weakref.WeakSet()
+"""Classes ``@message(name=...)`` defined again: no longer messages of anyone's stack."""
+_defined: list[Any] = [0, ()]
+"""How many classes were defined, and :func:`all_messages` as of then."""
 
-@dataclasses.dataclass(slots=True, kw_only=True, repr=False)
-class Message:
+
+def _module_name(module: str) -> str:
+    """A module's importable name: a module run as ``python -m pkg.mod`` is ``pkg.mod`` too."""
+    if module == "__main__":
+        spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+        if spec is not None and spec.name:
+            return str(spec.name)
+    return module
+
+
+def _tag_of(name: str) -> int:
+    return zlib.crc32(name.encode()) & MAX_TAG
+
+
+class _MessageMeta(msgspec.StructMeta):
+    """Gives every message class its tag, and refuses what cannot be a message."""
+
+    def __new__(
+        mcls,
+        cls_name: str,
+        bases: tuple[type, ...],
+        namespace: dict[str, Any],
+        /,
+        *,
+        wire_name: str | None = None,
+        **options: Any,
+    ) -> _MessageMeta:
+        if not any(isinstance(base, _MessageMeta) for base in bases):  # Message itself
+            return super().__new__(mcls, cls_name, bases, namespace, **options)
+        qualname = namespace.get("__qualname__", cls_name)
+        for clash in sorted(set(namespace.get("__annotations__", {})) & set(HEADER_FIELDS)):
+            raise MessageDefinitionError(f"{qualname}.{clash}: the name is taken by the header")
+        name = wire_name or f"{_module_name(namespace.get('__module__', ''))}.{qualname}"
+        tag = options.pop("tag", None)
+        if tag is None:
+            tag = _tag_of(name)
+        elif type(tag) is not int or not 0 <= tag <= MAX_TAG:
+            raise MessageDefinitionError(
+                f"{qualname}: a tag is an int in [0, {MAX_TAG}], got {tag!r}"
+            )
+        known = _tags.get(tag)
+        if known is not None and known != name:
+            raise MessageDefinitionError(
+                f"{qualname}: its wire name {name!r} has the tag {tag} of {known!r}; "
+                "give one of them another name with @message(name=...)"
+            )
+        kept = dict(namespace)  # before type() consumes __classcell__
+        try:
+            cls = super().__new__(mcls, cls_name, bases, namespace, tag=tag, **options)
+        except (TypeError, ValueError) as exc:  # field order, bad options...
+            raise MessageDefinitionError(f"{qualname}: {exc}") from exc
+        _check_fields(cls)
+        _tags[tag] = name
+        _defined[0] += 1
+        _names[cls] = name
+        _namespaces[cls] = kept
+        return cls
+
+
+def _check_fields(cls: Any) -> None:
+    """Raises ``MessageDefinitionError`` unless ``cls`` can travel (its schema, computed once)."""
+    where = cls.__qualname__
+    try:
+        typing.get_type_hints(cls, include_extras=True)
+    except Exception as exc:
+        raise MessageDefinitionError(f"{where}: cannot resolve field annotations: {exc}") from exc
+    try:
+        schema_text(cls)
+    except (TypeError, ValueError) as exc:  # msgspec, or we, name the type that cannot travel
+        raise MessageDefinitionError(f"{where}: {exc}") from exc
+
+
+# kw_only: the header fields are keyword-only, and msgspec places them after the
+# subclass's own fields (positional, in declaration order). array_like: on the wire
+# a message is an array, its tag first. forbid_unknown_fields: an array longer than
+# the class is refused, not silently cut.
+class Message(
+    msgspec.Struct,
+    metaclass=_MessageMeta,
+    kw_only=True,
+    array_like=True,
+    forbid_unknown_fields=True,
+    repr_omit_defaults=False,
+):
     """Base of every message. The header fields are filled by the runtime on send."""
 
     msg_type: MsgType = MsgType.ACCEPT
-    msg_id: int = 0
+    msg_id: _Id = 0
     robot_id: int = 0
     src_layer: int = 0
     dst_layer: int = 0
-    corr_id: int = 0
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        # Zero-argument super() fails here: slots=True remade this class after the
-        # method was compiled against the first one.
-        super(Message, cls).__init_subclass__(**kwargs)
-        # Until @message makes the class a dataclass, constructing one says what is
-        # missing (instead of Message.__init__ refusing the first field by name).
-        if "__init__" not in cls.__dict__:
-            cls.__init__ = _undecorated_init  # type: ignore[method-assign]
+    corr_id: _Id = 0
 
     def __repr__(self) -> str:
         return _text(self, repr)
@@ -97,8 +236,7 @@ class Message:
 
 def _text(msg: Message, show: Callable[[Any], str]) -> str:
     """``Class(field=value, ...) [header]``, each value as ``show`` writes it."""
-    spec = _by_class.get(type(msg))
-    names = spec.field_names if spec is not None else ()
+    names = field_names(type(msg))
     body = ", ".join(f"{name}={show(getattr(msg, name))}" for name in names)
     kind = getattr(msg.msg_type, "name", msg.msg_type)
     if not msg.msg_id:  # not stamped: the header means nothing yet
@@ -111,85 +249,7 @@ def _text(msg: Message, show: Callable[[Any], str]) -> str:
     )
 
 
-def _undecorated_init(self: Message, *args: Any, **kwargs: Any) -> None:
-    cls = type(self)
-    raise MessageDefinitionError(
-        f"{cls.__module__}.{cls.__qualname__} is a Message subclass without @message: "
-        "decorate the class with @message (from cas_async import message) so that its "
-        "annotated fields become the message's fields"
-    )
-
-
 M = TypeVar("M", bound=Message)
-
-
-@dataclasses.dataclass(frozen=True, slots=True)
-class MessageSpec:
-    """What the runtime knows of a registered message class."""
-
-    cls: type[Message]
-    name: str
-    type_id: int
-    field_names: tuple[str, ...]
-    field_types: tuple[FieldType, ...]
-
-    @property
-    def schema(self) -> str:
-        """Canonical text of the wire schema, used by the stack fingerprint."""
-        fields = ",".join(
-            f"{n}:{t.text}" for n, t in zip(self.field_names, self.field_types, strict=True)
-        )
-        return f"{self.type_id}:{self.name}({fields})"
-
-
-_by_id: dict[int, MessageSpec] = {}
-_by_class: dict[type[Message], MessageSpec] = {}
-_by_name: dict[str, MessageSpec] = {}
-_generation = 0  # counts the changes to the registry
-
-
-def _type_id_for(name: str) -> int:
-    return zlib.crc32(name.encode()) & _MAX_TYPE_ID
-
-
-def _same_class(a: type, b: type) -> bool:
-    """True when ``b`` is ``a`` defined again (module re-imported, ``__main__`` run twice)."""
-    return (a.__module__, a.__qualname__) == (b.__module__, b.__qualname__)
-
-
-def _register(cls: type[Message], name: str | None, type_id: int | None) -> MessageSpec:
-    """Registers a class that ``message()`` has checked and made a dataclass."""
-    name = name or cls.__name__
-    tid = _type_id_for(name) if type_id is None else type_id
-    if type(tid) is not int or not 0 <= tid <= _MAX_TYPE_ID:
-        raise MessageDefinitionError(f"{name}: type_id must be an int in [0, {_MAX_TYPE_ID}]")
-    try:
-        hints = typing.get_type_hints(cls, include_extras=True)  # keeps Annotated bounds
-    except Exception as exc:
-        raise MessageDefinitionError(f"{name}: cannot resolve field annotations: {exc}") from exc
-    fields = [f for f in dataclasses.fields(cls) if f.name not in HEADER_FIELDS]
-    types_ = tuple(field_type(hints[f.name], f"{name}.{f.name}", _NESTED) for f in fields)
-    spec = MessageSpec(cls, name, tid, tuple(f.name for f in fields), types_)
-    found = [e for e in (_by_name.get(name), _by_id.get(tid)) if e is not None]
-    for existing in found:  # check both before dropping anything: a refusal changes nothing
-        if not _same_class(existing.cls, cls):
-            raise MessageDefinitionError(
-                f"cannot register {cls.__module__}.{cls.__qualname__} as {name!r} (id {tid}): "
-                f"{existing.cls.__module__}.{existing.cls.__qualname__} is registered as "
-                f"{existing.name!r} (id {existing.type_id}); pass @message(name=...) or type_id=..."
-            )
-    for existing in found:
-        _unregister(existing)
-    global _generation
-    _generation += 1
-    _by_id[tid] = _by_class[cls] = _by_name[name] = spec
-    return spec
-
-
-def _unregister(spec: MessageSpec) -> None:
-    _by_id.pop(spec.type_id, None)
-    _by_class.pop(spec.cls, None)
-    _by_name.pop(spec.name, None)
 
 
 @overload
@@ -198,96 +258,74 @@ def message(cls: type[M], /) -> type[M]: ...
 def message(
     *, name: str | None = None, type_id: int | None = None
 ) -> Callable[[type[M]], type[M]]: ...
-@dataclass_transform()  # type checkers then see each message's generated __init__
+@dataclass_transform()
 def message(
     cls: type[M] | None = None, /, *, name: str | None = None, type_id: int | None = None
 ) -> type[M] | Callable[[type[M]], type[M]]:
-    """Makes a ``Message`` subclass a slotted dataclass and registers it.
+    """Optional: gives a message class another wire name (or tag) than its own.
 
-    Args:
-        cls: the class (when used as a bare ``@message``).
-        name: wire name; defaults to the class name. Must be unique in the process.
-        type_id: explicit wire id in ``[0, 2**31)``; defaults to a hash of ``name``.
+    Every ``Message`` subclass is a message without it. ``@message`` alone checks
+    that the class is one; ``@message(name="gathering.Position")`` makes the tag a
+    CRC of that name (a name that stays when the class moves to another module),
+    ``@message(type_id=7)`` sets the tag itself.
 
     Raises:
-        MessageDefinitionError: unsupported field type, header name clash, or a name
-            or id already used by another class.
+        MessageDefinitionError: not a ``Message`` subclass, a tag out of range, or
+            a tag another wire name already has.
     """
 
     def wrap(klass: type[M]) -> type[M]:
         if not (isinstance(klass, type) and issubclass(klass, Message)) or klass is Message:
             raise MessageDefinitionError(f"@message needs a subclass of Message, got {klass!r}")
-        where = name or klass.__name__
-        # Before dataclass(): a header name redeclared with a default makes it fail first.
-        for clash in sorted(set(inspect.get_annotations(klass)) & set(HEADER_FIELDS)):
-            raise MessageDefinitionError(f"{where}.{clash}: the name is taken by the header")
-        if klass.__dict__.get("__init__") is _undecorated_init:
-            del klass.__init__  # dataclass() writes the real one only where none is
-        try:
-            made = dataclasses.dataclass(slots=True, repr=False)(klass)
-        except (TypeError, ValueError) as exc:  # field order, @message applied twice...
-            raise MessageDefinitionError(f"{where}: {exc}") from exc
-        _register(made, name, type_id)
-        return made
+        if name is None and type_id is None:
+            return klass
+        namespace = _namespaces.get(klass)
+        if namespace is None:  # pragma: no cover - every subclass is recorded
+            raise MessageDefinitionError(f"{klass.__qualname__}: cannot be named again")
+        options: dict[str, Any] = {} if type_id is None else {"tag": type_id}
+        again = _MessageMeta(
+            klass.__name__,
+            klass.__bases__,
+            dict(namespace),
+            wire_name=name or _names.get(klass),
+            **options,
+        )
+        _superseded.add(klass)
+        _defined[0] += 1
+        return again  # type: ignore[return-value]
 
     return wrap if cls is None else wrap(cls)
 
 
-def spec_of(cls: type[Message]) -> MessageSpec:
-    """The spec of a registered class; a clear error when ``@message`` was forgotten."""
-    spec = _by_class.get(cls)
-    if spec is None:
-        raise MessageDefinitionError(
-            f"{cls.__qualname__} is not a registered message: decorate it with @message"
-        )
-    return spec
+def field_names(cls: type[Message]) -> tuple[str, ...]:
+    """The fields a message class declares (its own and its bases'), without the header."""
+    return cls.__struct_fields__[: -len(HEADER_FIELDS)]
 
 
-def registered() -> Iterator[MessageSpec]:
-    """Every registered message spec, in type-id order."""
-    return iter(sorted(_by_id.values(), key=lambda s: s.type_id))
+def wire_name(cls: type[Message]) -> str:
+    """The name ``cls``'s tag is the CRC of: its full name, or the one ``@message`` gave."""
+    try:
+        return _names[cls]
+    except KeyError:
+        raise MessageDefinitionError(f"{cls!r} is not a message class") from None
 
 
-def registry_generation() -> int:
-    """A number that changes whenever a message class is registered (or replaced)."""
-    return _generation
+def all_messages() -> tuple[type[Message], ...]:
+    """Every message class defined in this process and still in use, by tag.
 
-
-def specs_for(classes: Iterable[type[Message]] | None) -> dict[int, MessageSpec]:
-    """The specs a robot accepts: the given classes, or every registered one."""
-    if classes is None:
-        return dict(_by_id)
-    return {spec.type_id: spec for spec in map(spec_of, classes)}
-
-
-def _decode_nested(value: Any, path: str, expected: type) -> Message:
-    """Decodes a nested message sent as ``[type_id, *fields]`` (no header)."""
-    if type(value) is not tuple or not value or type(value[0]) is not int:
-        raise DecodeError(
-            f"{path}: expected {expected.__name__} [type_id, fields...]", "wrong_type"
-        )
-    spec = _by_id.get(value[0])
-    if spec is None or not issubclass(spec.cls, expected):
-        raise DecodeError(f"{path}: type id {value[0]} is not a {expected.__name__}", "wrong_type")
-    if len(value) != 1 + len(spec.field_names):
-        raise DecodeError(
-            f"{path}: {spec.name} has {len(spec.field_names)} fields, got {len(value) - 1}",
-            "wrong_arity",
-        )
-    obj = object.__new__(spec.cls)
-    for attr, kind, raw in zip(spec.field_names, spec.field_types, value[1:], strict=True):
-        setattr(obj, attr, kind.convert(raw, f"{path}.{attr}"))
-    for attr in HEADER_FIELDS:
-        setattr(obj, attr, 0)
-    obj.msg_type = MsgType.ACCEPT
-    return obj
-
-
-def nested_to_wire(obj: Message) -> tuple[Any, ...]:
-    """Encodes a message nested in a field as ``(type_id, *fields)``."""
-    spec = spec_of(type(obj))
-    return (spec.type_id, *(getattr(obj, name) for name in spec.field_names))
-
-
-_NESTED: Final = NestedMessages(Message, _decode_nested)
-"""How the schema recognises and decodes fields that hold messages."""
+    What a robot given no ``messages=`` accepts: as before, the classes imported
+    so far (import the same message modules in every process).
+    """
+    count, known = _defined
+    if known and known[0] == count:
+        return known[1]  # type: ignore[no-any-return]
+    found: list[type[Message]] = []
+    pending = list(Message.__subclasses__())
+    while pending:
+        cls = pending.pop()
+        pending.extend(cls.__subclasses__())
+        if cls not in _superseded and not inspect.isabstract(cls):
+            found.append(cls)
+    classes = tuple(sorted(found, key=lambda c: (c.__struct_config__.tag, c.__qualname__)))
+    _defined[1] = (count, classes)
+    return classes

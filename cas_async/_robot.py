@@ -36,7 +36,7 @@ from ._hooks import Overrides
 from ._layer import Layer, attach, overrides
 from ._layer_runtime import LayerRuntime
 from ._logs import DropLog, logger_for
-from ._message import Message, specs_for
+from ._message import Message
 from ._outbox import Outbox
 from ._reception import Reception
 from ._robot_state import RobotState
@@ -65,7 +65,7 @@ class Robot:
         transport: how external messages travel; without one, ``send`` raises.
         clock: simulated time; real time (``ScaledClock(1.0)``) by default.
         messages: the message classes this robot's stack uses; they define the
-            stack fingerprint. Default: every registered message. Pass it when one
+            stack fingerprint. Default: every message class defined. Pass it when one
             process holds messages of several applications (e.g. a test session).
         max_datagram_size: largest datagram encoded or accepted (also capped by the
             transport's own limit).
@@ -272,12 +272,12 @@ class Robot:
                 "do not run on virtual time; use MemoryTransport with VirtualClock, "
                 "or ScaledClock with this transport"
             )
-        specs_for(self._messages)  # refuses an unregistered class before any socket
         layers = len(self._runtimes)
+        # Made before any socket: refuses a class that is no message, or two with one tag.
+        codec = Codec.shared(layers, self._messages, self._max_datagram_size)
         first_id = self.clock.message_id_base(self.robot_id)
         kept = ReplyCache(keep_for=self.clock.loop_seconds(self.reply_memory))
         if transport is None:
-            codec = Codec.shared(layers, self._messages, self._max_datagram_size)
             self._outbox.connect(codec, None, first_id, now=loop.time, replies=kept)
         else:
             endpoint = await transport.open(self.robot_id, self._reception)

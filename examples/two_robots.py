@@ -15,21 +15,18 @@ import argparse
 import time
 
 import cas_async
-from cas_async import Layer, Message, Robot, ScaledClock, Swarm, UdpTransport, message
+from cas_async import Layer, Message, Robot, ScaledClock, Swarm, UdpTransport
 
 
-@message
 class Ball(Message):
     throw: int
     speed: float
 
 
-@message
 class Catch(Message):
     speed: float
 
 
-@message
 class Caught(Message):
     seconds: float
 

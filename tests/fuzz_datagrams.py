@@ -23,9 +23,11 @@ from typing import Any, Final
 
 import msgpack
 
-from cas_async import DecodeError, Message, MsgType, spec_of
+from cas_async import DecodeError, Message, MsgType
+from cas_async._message import field_names
 from cas_async.transport import Codec
 from tests.stacks import Answer, Note, Query
+from tests.wire import tag_of
 
 __all__ = ["KINDS", "UNKNOWN_ROBOT", "HostileDatagrams", "kinds_in_turn"]
 
@@ -171,19 +173,15 @@ class HostileDatagrams:
     def _wire(
         self, msg: Message, fields: Sequence[Any], *, fp: Any = _SAME, tid: Any = _SAME
     ) -> bytes:
-        """A datagram packed by hand: ``msg``'s header with the given fields."""
-        header = (msg.msg_id, int(msg.msg_type), msg.robot_id, msg.src_layer, msg.dst_layer)
-        head = [
-            self._codec.fingerprint if fp is _SAME else fp,
-            spec_of(type(msg)).type_id if tid is _SAME else tid,
-            *header,
-            msg.corr_id,
-        ]
-        data: bytes = msgpack.packb([*head, *fields], use_bin_type=True)
+        """A datagram packed by hand: the given fields with ``msg``'s header."""
+        header = (int(msg.msg_type), msg.msg_id, msg.robot_id, msg.src_layer, msg.dst_layer)
+        items = [tag_of(type(msg)) if tid is _SAME else tid, *fields, *header, msg.corr_id]
+        prefix = (self._codec.fingerprint if fp is _SAME else fp).to_bytes(4, "big")
+        data: bytes = prefix + msgpack.packb(items, use_bin_type=True)
         return data
 
     def _fields(self, msg: Message) -> list[Any]:
-        return [getattr(msg, name) for name in spec_of(type(msg)).field_names]
+        return [getattr(msg, name) for name in field_names(type(msg))]
 
     def _follow(self, data: bytes) -> None:
         """Keeps the attacker's ids above any id a mutation made the victim accept."""
@@ -217,7 +215,7 @@ class HostileDatagrams:
         rng = self._rng
         msg = self._message()
         self._stamp(msg)
-        known = {spec_of(cls).type_id for cls in self._messages}
+        known = {tag_of(cls) for cls in self._messages}
         tid = rng.choice((rng.randrange(2**31), -1, 2**40, "Query", 1.5, None, [1]))
         while type(tid) is int and tid in known:
             tid = rng.randrange(2**31)
@@ -248,17 +246,18 @@ class HostileDatagrams:
         valid = self._wire(msg, self._fields(msg))
         filler = rng.randbytes(rng.randrange(200))
         roll = rng.random()
+        prefix, body = valid[:4], valid[4:]
         if roll < 0.2:  # the datagram itself claims 2**32 - 1 items
-            return b"\xdd\xff\xff\xff\xff" + valid[1:] + filler
+            return prefix + b"\xdd\xff\xff\xff\xff" + body[1:] + filler
         if roll < 0.4:  # arrays nested deep, each claiming 65535 items
             depth = rng.randrange(1, 700)
             return valid + b"\xdc\xff\xff" * depth + filler
-        # A lying field in place of the last one.
-        count = len(spec_of(type(msg)).field_names)
-        head = self._wire(msg, self._fields(msg)[:-1])
+        # A lying field in place of the last one (the header would follow it).
+        fields = self._fields(msg)
+        head = msgpack.packb([tag_of(type(msg)), *fields[:-1]], use_bin_type=True)
         # Every message of the stack has a header and fields that fit a fixarray.
-        head = bytes([0x90 + 8 + count]) + head[1:]  # the count includes the liar
-        return head + rng.choice(_LIARS) + filler
+        head = bytes([0x90 + 1 + len(fields) + 6]) + head[1:]  # the count includes the liar
+        return prefix + head + rng.choice(_LIARS) + filler
 
     def _wrong_fingerprint(self) -> bytes:
         rng = self._rng

@@ -87,11 +87,11 @@ from cas_async import (
     Robot,
     StackMismatchError,
     SwarmKey,
-    spec_of,
 )
 from cas_async.scenario import RunResult, RunStatus, Scenario, ScenarioRun, load_scenario
 from cas_async.testing import peer_process
 from cas_async.transport import Codec
+from tests.wire import datagram
 
 SCENARIO: Final = (
     Path(__file__).resolve().parents[1] / "apps/fire_brigade/scenarios/thesis_5_8_2.toml"
@@ -266,16 +266,14 @@ class Forger:
         rng = self.rng
         ahead = self.now_us + rng.randrange(1, 600_000_000)  # up to 10 minutes ahead
         header = [
-            self.codec.fingerprint,
-            spec_of(cls).type_id,
-            rng.choice((2**63 - 1, 2**64 - 1, 2**62, ahead)),  # msg_id
             int(rng.choice(list(MsgType))),
+            rng.choice((2**63 - 1, 2**64 - 1, 2**62, ahead)),  # msg_id
             rng.choice(self.robot_ids),  # the robot it claims to come from
             LEVELS[cls],
             LEVELS[cls],
             0 if rng.random() < 0.5 else ahead - rng.randrange(2_000_000),  # corr_id
         ]
-        return pack([*header, *fields])
+        return datagram(self.codec.fingerprint, cls, fields, header=header)
 
     def spoofed(self) -> bytes:
         """A well-formed message claiming a robot of the swarm; one in five outside the world."""
@@ -290,13 +288,13 @@ class Forger:
         choices: dict[type[Message], list[Any]] = {
             RequestInfo: [],
             RobotInfo: [x, y, kind, rng.uniform(0, 5)],
-            RequestPartner: [x, y, kind, bucket, sink, x, y],
+            RequestPartner: [x, y, kind, bucket, [sink, x, y]],
             PartnerAnswer: [kind],
             Meet: [x, y, kind, rng.uniform(0, 5), deal],
             MeetingPoint: [x, y, deal],
             Meeting: [deal],
             Handover: [bucket, deal],
-            MeetAt: [sink, x, y, True, bucket, sink, x, y, deal],
+            MeetAt: [sink, x, y, True, bucket, [sink, x, y], deal],
         }
         cls = rng.choice(list(choices))
         return self.wire(cls, choices[cls])
@@ -311,7 +309,7 @@ class Forger:
             (Meet, [x, y, 2, speed, -1]),
             (Meet, [bad, y, 2, 1.0, -1]),
             (RobotInfo, [x, y, 2, speed]),
-            (RequestPartner, [x, bad, 2, -1, -1, x, y]),
+            (RequestPartner, [x, bad, 2, -1, [-1, x, y]]),
             (RequestRobotsInRange, [speed]),  # the radius
             (RobotsInRange, [[1, 2], [x, bad], [y, y], x, y, 1.0]),
         ]
@@ -338,8 +336,9 @@ class Forger:
             ids = ["robot"] * (n * 3 // 2)
             return self.wire(RobotsInRange, [ids, [], [], 1.0, 1.0, 1.0])
         # in an int field, arrays in arrays, 9 * n deep
-        data = self.wire(Meeting, [0])
-        return data[:-1] + b"\x91" * (9 * n) + b"\x00"
+        marker = 2**64 - 7  # packed as 9 bytes no other value of the datagram has
+        data = self.wire(Meeting, [marker])
+        return data.replace(pack(marker), b"\x91" * (9 * n) + b"\x00")
 
     def garbage(self) -> bytes:
         """Random bytes, a cut datagram, or a message with a made-up authentication trailer."""

@@ -18,12 +18,12 @@ from typing import Any
 import msgpack
 import numpy as np
 import pytest
+from cas_async._datagram import MAX_NESTING
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cas_async import DecodeError, Message, MsgType, message, spec_of
 from cas_async._codec import MIN_DATAGRAM
-from cas_async._datagram import MAX_NESTING
 from cas_async._message import specs_for
 from cas_async.transport import Codec, stack_fingerprint
 

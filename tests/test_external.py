@@ -21,12 +21,12 @@ from cas_async import (
     UdpTransport,
     VirtualClock,
     message,
-    spec_of,
 )
 from cas_async.testing import wait_all_tasks_blocked
 from cas_async.transport import Codec
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder, recorders
 from tests.taps import Tap
+from tests.wire import datagram
 
 
 @pytest.fixture(params=["memory", "pass_objects", "udp"])
@@ -178,8 +178,10 @@ async def test_stack_mismatch_is_refused_counted_and_logged_once(
     assert "identical stacks" in text
 
 
-def _raw_datagram(robot: Robot, *fields: object) -> bytes:
-    return msgpack.packb([robot.fingerprint, *fields])
+def _raw_datagram(
+    robot: Robot, *fields: object, src: int = 0, dst: int = 0, sender: int = 2
+) -> bytes:
+    return datagram(robot.fingerprint, Note, fields, src=src, dst=dst, robot_id=sender)
 
 
 @pytest.mark.cas_allow_drops(
@@ -200,24 +202,25 @@ async def test_hostile_datagrams_over_real_udp_are_dropped_and_counted(start_rob
     transport = UdpTransport()
     stack = recorders(2)
     robot = await start_robot(1, stack, transport=transport)
-    note_id = spec_of(Note).type_id
-    header = lambda src, dst, sender=2: [note_id, 1, 1, sender, src, dst, 0]  # noqa: E731
+    prefix = robot.fingerprint.to_bytes(4, "big")
     hostile = {
-        "decode.malformed": b"\xc1\xff garbage",
-        "decode.bad_header": msgpack.packb({"not": "a datagram"}),
-        "decode.unknown_type": _raw_datagram(robot, 12345, 1, 1, 2, 0, 0, 0),
-        "decode.wrong_arity": _raw_datagram(robot, *header(0, 0), "text"),
-        "decode.wrong_type": _raw_datagram(robot, *header(0, 0), 5, []),
+        "decode.malformed": prefix + b"\xc1\xff garbage",
+        "decode.bad_header": prefix + msgpack.packb({"not": "a datagram"}),
+        "decode.unknown_type": datagram(robot.fingerprint, 12345, ["x", []]),
+        "decode.wrong_arity": datagram(
+            robot.fingerprint, Note, ["text", [], 1, 1, 2, 0, 0, 0, "one too many"], header=()
+        ),
+        "decode.wrong_type": _raw_datagram(robot, 5, []),
         "decode.oversize": b"\x00" * 70_000,
-        "cross_level": _raw_datagram(robot, *header(0, 1), "up", []),
-        "no_such_layer": _raw_datagram(robot, *header(5, 5), "deep", []),
-        "from_own_id": _raw_datagram(robot, *header(0, 0, sender=1), "me", []),
-        "stack_mismatch": msgpack.packb([robot.fingerprint ^ 1, *header(0, 0), "x", []]),
+        "cross_level": _raw_datagram(robot, "up", [], dst=1),
+        "no_such_layer": _raw_datagram(robot, "deep", [], src=5, dst=5),
+        "from_own_id": _raw_datagram(robot, "me", [], sender=1),
+        "stack_mismatch": datagram(robot.fingerprint ^ 1, Note, ["x", []]),
         # Robot 3 is known, but the datagram comes from robot 2's address.
-        "spoofed_sender": _raw_datagram(robot, *header(0, 0, sender=3), "spoof", []),
+        "spoofed_sender": _raw_datagram(robot, "spoof", [], sender=3),
     }
     # From an address that is no robot's: refused before it is decoded.
-    unknown = _raw_datagram(robot, *header(0, 0, sender=77), "who", [])
+    unknown = _raw_datagram(robot, "who", [], sender=77)
     host, port = robot.address
     transport.directory.add(3, "127.0.0.1", 9)  # never sent to
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
@@ -229,7 +232,7 @@ async def test_hostile_datagrams_over_real_udp_are_dropped_and_counted(start_rob
                 sock.sendto(data, (host, port))
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as stranger:
             stranger.sendto(unknown, (host, port))
-        sock.sendto(_raw_datagram(robot, *header(0, 0), "valid", [7]), (host, port))
+        sock.sendto(_raw_datagram(robot, "valid", [7]), (host, port))
     await wait_for(lambda: stack[0].external and sum(robot.dropped.values()) == len(hostile))
     expected = {reason: 1 for reason, data in hostile.items() if len(data) <= 65_507}
     expected["unknown_source"] = 1
@@ -343,7 +346,7 @@ async def test_a_flood_of_foreign_fingerprints_is_explained_a_few_times_only(
     tap = Tap()
     robot = await start_robot(1, recorders(1), transport=tap)
     for fingerprint in range(1000):
-        tap.deliver(1, msgpack.packb([fingerprint, 1, 1, 1, 2, 0, 0, 0]), 2)  # robot 2's
+        tap.deliver(1, datagram(fingerprint, 1, []), 2)  # robot 2's
     explained = [r for r in caplog.records if "refusing datagrams" in r.getMessage()]
     assert len(explained) == 16
     assert robot.dropped == {"stack_mismatch": 1000}
@@ -356,7 +359,7 @@ async def test_a_foreign_stack_is_blamed_on_its_source_not_on_the_robot_it_claim
 ) -> None:
     tap = Tap()
     robot = await start_robot(1, recorders(1), transport=tap)
-    tap.deliver(1, msgpack.packb([12345, 1, 1, 1, 2, 0, 0, 0]), 3)  # claims 2, comes from 3
+    tap.deliver(1, datagram(12345, 1, []), 3)  # claims 2, comes from 3
     (explained,) = [r.getMessage() for r in caplog.records if "refusing" in r.getMessage()]
     assert "refusing datagrams from robot 3:" in explained
     assert robot.dropped == {"stack_mismatch": 1}
@@ -397,5 +400,5 @@ async def test_integers_beyond_64_bits_get_a_clear_encode_error(start_robot) -> 
     transport = MemoryTransport()
     await start_robot(1, stack, transport=transport, messages=[WideInt])
     await start_robot(2, [Layer()], transport=transport, messages=[WideInt])
-    with pytest.raises(EncodeError, match="outside the 64-bit integer range"):
+    with pytest.raises(EncodeError, match=r"field .value.: can.t serialize ints"):
         stack[0].send(2, WideInt(2**70))

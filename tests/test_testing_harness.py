@@ -8,6 +8,7 @@ from apps.fire_brigade import TimeStrategy
 from apps.fire_brigade.base import ACTION
 from apps.fire_brigade.messages import (
     MESSAGES,
+    Destination,
     MoveBucket,
     RequestPartner,
     RequestRobotsInRange,
@@ -25,7 +26,7 @@ async def test_a_strategy_layer_asks_the_best_partner_first() -> None:
         TimeStrategy(params()), level=1, height=5, peers=[11, 12], messages=MESSAGES
     ) as h:
         h.answer_at(ACTION, RequestRobotsInRange, lambda _: near)
-        h.from_above(MoveBucket(bucket=7, sink=2, sink_x=5.0, sink_y=19.0))
+        h.from_above(MoveBucket(bucket=7, to=Destination(2, 5.0, 19.0)))
         await h.settle()
         (asked,) = h.sent_to(12)  # ahead, on the way to the sink: the best partner
         assert isinstance(asked, RequestPartner)

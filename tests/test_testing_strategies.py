@@ -1,4 +1,4 @@
-"""strategy_for: Hypothesis strategies from @message annotations, through the real codec."""
+"""strategy_for: Hypothesis strategies from message classes, through the real codec."""
 
 from __future__ import annotations
 
@@ -6,13 +6,14 @@ import enum
 import math
 from typing import Annotated
 
+import msgspec
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from apps.fire_brigade.messages import MESSAGES
-from cas_async import Bounds, Finite, Message, message
+from cas_async import Finite, Message, finite
 from cas_async.testing import assert_roundtrip, strategy_for
 
 
@@ -21,13 +22,16 @@ class Colour(enum.IntEnum):
     BLUE = 7
 
 
-@message
 class Inner(Message):
     x: float
     tag: str = ""
 
 
-@message
+class Point(msgspec.Struct, frozen=True):
+    x: float
+    y: float
+
+
 class KitchenSink(Message):
     n: int
     ok: bool
@@ -44,9 +48,12 @@ class KitchenSink(Message):
     bare: list  # type: ignore[type-arg]
     grid: np.ndarray  # type: ignore[type-arg]
     finite: Annotated[float, Finite]
-    seats: Annotated[int, Bounds(ge=1, le=8)]
-    share: Annotated[float, Bounds(gt=0, lt=1)]
-    few: Annotated[int, Bounds(gt=0, lt=3)]
+    seats: Annotated[int, msgspec.Meta(ge=1, le=8)]
+    share: Annotated[float, msgspec.Meta(gt=0, lt=1)]
+    few: Annotated[int, msgspec.Meta(gt=0, lt=3)]
+    speed: Annotated[float, finite(gt=0)]
+    point: Point
+    points: list[Point]
 
 
 SINK_MESSAGES = [KitchenSink, Inner]
@@ -74,6 +81,7 @@ def test_drawn_values_keep_their_bounds(msg: KitchenSink) -> None:
     assert 0 < msg.share < 1
     assert msg.few in (1, 2)
     assert msg.colour in (Colour.RED, Colour.BLUE)
+    assert 0 < msg.speed < math.inf
 
 
 def test_a_class_without_message_is_refused() -> None:

@@ -2,9 +2,9 @@
 
 A layer dispatches on the class (``match msg: case SelectedObject(): ...``); the
 thesis's communication type (negotiation, accept, deny) is the header's
-``msg_type``. Every class is registered under a wire name prefixed with
-``box_moving.``, so that it never clashes with the Fire Brigade's classes of the
-same name (``RequestPartner``) in one process.
+``msg_type``. A robot decodes only its own stack's messages, so the Fire
+Brigade's classes of the same name (``RequestPartner``) never clash with these,
+even in one process.
 
 An object, as a robot's sensors see it, travels as a nested :class:`Sighting`:
 its id, where it is, its weight and size, and its drop spot.
@@ -55,7 +55,9 @@ from __future__ import annotations
 import enum
 from typing import Annotated, TypeAlias
 
-from cas_async import Bounds, Finite, Message, message
+import msgspec
+
+from cas_async import Finite, Message, finite
 
 __all__ = [
     "MESSAGES",
@@ -96,11 +98,11 @@ __all__ = [
 Coordinate: TypeAlias = Annotated[float, Finite]
 """A position's x or y, or an instant: finite, checked when a message arrives."""
 
-Amount: TypeAlias = Annotated[float, Finite, Bounds(ge=0)]
+Amount: TypeAlias = Annotated[float, finite(ge=0)]
 """A weight, size or speed: finite and not negative.
 
-(Not "above zero": the schema cannot yet combine ``Finite`` with a strict lower
-bound, ``Bounds(gt=0)``; the senders never send zero.)"""
+(Not "above zero": the senders never send zero, but a zero would be a
+well-formed value for a layer to refuse, not a malformed message.)"""
 
 
 class Side(enum.IntEnum):
@@ -136,8 +138,7 @@ class Role(enum.IntEnum):
     """It helps the leader."""
 
 
-@message(name="box_moving.Sighting")
-class Sighting(Message):
+class Sighting(msgspec.Struct, frozen=True, array_like=True):
     """An object as a robot's sensors see it: where, how heavy, how big, and where it goes.
 
     Attributes:
@@ -160,21 +161,18 @@ class Sighting(Message):
 # -- between robots ---------------------------------------------------------------------------
 
 
-@message(name="box_moving.SelectedObject")
 class SelectedObject(Message):
     """Decision-Making to Decision-Making: this robot selected ``obj`` (NEGOTIATION)."""
 
     obj: int
 
 
-@message(name="box_moving.SelectionAnswer")
 class SelectionAnswer(Message):
     """The answer to :class:`SelectedObject`: ACCEPT (no conflict) or DENY."""
 
     obj: int
 
 
-@message(name="box_moving.RequestPartner")
 class RequestPartner(Message):
     """Task to Task: help carry ``object`` (NEGOTIATION); ``payload`` is the asker's."""
 
@@ -182,7 +180,6 @@ class RequestPartner(Message):
     payload: Amount
 
 
-@message(name="box_moving.PartnerAnswer")
 class PartnerAnswer(Message):
     """The answer to :class:`RequestPartner`: ACCEPT or DENY.
 
@@ -198,14 +195,12 @@ class PartnerAnswer(Message):
     payload: Amount
 
 
-@message(name="box_moving.Dismiss")
 class Dismiss(Message):
     """Task to Task: the leader no longer needs this robot's help with ``obj`` (NEGOTIATION)."""
 
     obj: int
 
 
-@message(name="box_moving.OfferHelp")
 class OfferHelp(Message):
     """Task to Task: "I am free now: shall I help you with ``obj``?" (NEGOTIATION).
 
@@ -218,7 +213,6 @@ class OfferHelp(Message):
     payload: Amount
 
 
-@message(name="box_moving.Balance")
 class Balance(Message):
     """Coordination to Coordination: the leader's position and carrying speed (NEGOTIATION)."""
 
@@ -228,7 +222,6 @@ class Balance(Message):
     speed: Amount
 
 
-@message(name="box_moving.Balanced")
 class Balanced(Message):
     """The answer to :class:`Balance`: the sides each robot lifts, and the common speed."""
 
@@ -238,7 +231,6 @@ class Balanced(Message):
     speed: Amount
 
 
-@message(name="box_moving.Ready")
 class Ready(Message):
     """This robot holds ``obj`` at the start of leg ``leg`` (after the last: the put-down)."""
 
@@ -246,7 +238,6 @@ class Ready(Message):
     leg: int
 
 
-@message(name="box_moving.Go")
 class Go(Message):
     """Start leg ``leg`` at instant ``at``: the object's centre goes to ``x, y``."""
 
@@ -257,7 +248,6 @@ class Go(Message):
     at: Coordinate
 
 
-@message(name="box_moving.Release")
 class Release(Message):
     """Put ``obj`` down, starting at instant ``at``: the joint carry's last step."""
 
@@ -268,12 +258,10 @@ class Release(Message):
 # -- down the stack ---------------------------------------------------------------------------
 
 
-@message(name="box_moving.Scan")
 class Scan(Message):
     """Decision-Making to Action: look for objects; answered upwards by :class:`ScanResult`."""
 
 
-@message(name="box_moving.ScanResult")
 class ScanResult(Message):
     """Action to Decision-Making: the robot's position, the free objects, how many are moved."""
 
@@ -283,28 +271,24 @@ class ScanResult(Message):
     moved: int
 
 
-@message(name="box_moving.Claim")
 class Claim(Message):
     """Decision-Making to Action: mark ``obj`` as this robot's (it selected it)."""
 
     obj: int
 
 
-@message(name="box_moving.Unclaim")
 class Unclaim(Message):
     """Decision-Making to Action: take this robot's mark off ``obj`` (it let the selection go)."""
 
     obj: int
 
 
-@message(name="box_moving.ChangeStatus")
 class ChangeStatus(Message):
     """Decision-Making to Task (InformTask): ``object`` is the one this robot moves now."""
 
     object: Sighting
 
 
-@message(name="box_moving.Assignment")
 class Assignment(Message):
     """Task to Coordination (InformCoordination): carry ``object`` in ``role``.
 
@@ -317,14 +301,12 @@ class Assignment(Message):
     partner_payload: float = 0.0
 
 
-@message(name="box_moving.Dismissed")
 class Dismissed(Message):
     """Task to Coordination: the help with ``obj`` is off (the leader found another way)."""
 
     obj: int
 
 
-@message(name="box_moving.CarryOut")
 class CarryOut(Message):
     """Coordination to Action (InformAction): the carry of ``object`` as agreed.
 
@@ -346,21 +328,18 @@ class CarryOut(Message):
 # -- up the stack -----------------------------------------------------------------------------
 
 
-@message(name="box_moving.CarryDone")
 class CarryDone(Message):
     """Action to Decision-Making, hop by hop: this robot's carry of ``obj`` is over."""
 
     obj: int
 
 
-@message(name="box_moving.MovedCount")
 class MovedCount(Message):
     """Action to Decision-Making, hop by hop: ``moved`` objects lie in the drop zone."""
 
     moved: int
 
 
-@message(name="box_moving.Helping")
 class Helping(Message):
     """Task to Decision-Making: this robot helps ``leader`` with ``obj``: drop any selection."""
 
@@ -368,14 +347,12 @@ class Helping(Message):
     leader: int
 
 
-@message(name="box_moving.Released")
 class Released(Message):
     """Task to Decision-Making: the help with ``obj`` is off: this robot is free again."""
 
     obj: int
 
 
-@message(name="box_moving.GiveUp")
 class GiveUp(Message):
     """Task to Decision-Making: no robot can help lift ``obj``: select another one."""
 
@@ -385,12 +362,10 @@ class GiveUp(Message):
 # -- the Action layer's queries ---------------------------------------------------------------
 
 
-@message(name="box_moving.Where")
 class Where(Message):
     """Where is this robot? Answered with :class:`Position`."""
 
 
-@message(name="box_moving.Position")
 class Position(Message):
     """The robot's position and heading."""
 
@@ -399,12 +374,10 @@ class Position(Message):
     heading: Coordinate
 
 
-@message(name="box_moving.Locate")
 class Locate(Message):
     """Where are the other robots? Answered with :class:`Located`."""
 
 
-@message(name="box_moving.Located")
 class Located(Message):
     """The other robots, nearest first, and this robot's position."""
 
@@ -416,7 +389,6 @@ class Located(Message):
 
 
 MESSAGES: tuple[type[Message], ...] = (
-    Sighting,
     # between robots
     SelectedObject,
     SelectionAnswer,

@@ -29,6 +29,7 @@ from .base import ACTION, BrigadeLayer, Params, Point
 from .estimate import distance
 from .messages import (
     BucketMade,
+    Destination,
     Exchanged,
     Kind,
     MakeBucket,
@@ -79,11 +80,7 @@ class Goal(BrigadeLayer):
                 return
             self._choose_sink(self.sinks)
         self.delegated = True
-        self.send_down(
-            MoveBucket(
-                bucket=self.bucket, sink=self.sink, sink_x=self.sink_at[0], sink_y=self.sink_at[1]
-            )
-        )
+        self.send_down(MoveBucket(bucket=self.bucket, to=Destination(self.sink, *self.sink_at)))
 
     async def _make_bucket(self) -> None:
         # Making a bucket is physical: the robotic layer does it.
@@ -208,7 +205,7 @@ class Goal(BrigadeLayer):
                 self.here = (msg.x, msg.y)
                 if msg.has_bucket and self.kind is not Kind.SINK:
                     self.bucket = msg.bucket
-                    self.sink, self.sink_at = msg.sink, (msg.sink_x, msg.sink_y)
+                    self.sink, self.sink_at = msg.to.sink, msg.to.at
                 else:
                     self.bucket = self.sink = -1
             case _:

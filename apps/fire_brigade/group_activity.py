@@ -154,9 +154,7 @@ class GroupActivity(BrigadeLayer):
                 y=point[1],
                 giver=partnership.giver,
                 bucket=partnership.bucket,
-                sink=partnership.sink,
-                sink_x=partnership.sink_x,
-                sink_y=partnership.sink_y,
+                to=partnership.to,
                 deal=partnership.deal,
             )
         )

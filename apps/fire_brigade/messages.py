@@ -42,10 +42,8 @@ The Action layer's requests (NEGOTIATION, answered when the action is over):
   ``HoldOut``, ``Withdraw``, ``Give``, ``Take``, each answered with
   ``CompletionStatus``: the robot's pose, and whether it holds the bucket.
 
-A bucket's destination is a Sink's id and position (``sink``, ``sink_x``,
-``sink_y``) in every message that needs it: three scalar fields rather than a
-nested message or a tuple, which would take every ``RequestPartner`` off the
-codec's fast path.
+A bucket's destination, a Sink's id and position, travels as one nested
+:class:`Destination` in every message that needs it (``to``).
 """
 
 from __future__ import annotations
@@ -53,7 +51,9 @@ from __future__ import annotations
 import enum
 from typing import Annotated, TypeAlias
 
-from cas_async import Bounds, Finite, Message, message
+import msgspec
+
+from cas_async import Finite, Message, finite
 
 __all__ = [
     "MESSAGES",
@@ -63,6 +63,7 @@ __all__ = [
     "Command",
     "CompletionStatus",
     "Coordinate",
+    "Destination",
     "Distance",
     "Exchanged",
     "Give",
@@ -95,11 +96,27 @@ __all__ = [
 Coordinate: TypeAlias = Annotated[float, Finite]
 """A position's x or y: finite, checked when a message arrives (NaN never reaches a layer)."""
 
-Speed: TypeAlias = Annotated[float, Finite, Bounds(ge=0)]
+Speed: TypeAlias = Annotated[float, finite(ge=0)]
 """A speed: finite and not negative."""
 
-Distance: TypeAlias = Annotated[float, Finite, Bounds(ge=0)]
+Distance: TypeAlias = Annotated[float, finite(ge=0)]
 """A radius: finite and not negative."""
+
+
+class Destination(msgspec.Struct, frozen=True, array_like=True):
+    """Where a bucket goes: the Sink ``sink``, standing at ``x, y``.
+
+    It travels with the bucket, nested in the messages about it.
+    """
+
+    sink: int
+    x: Coordinate
+    y: Coordinate
+
+    @property
+    def at(self) -> tuple[float, float]:
+        """The Sink's position."""
+        return (self.x, self.y)
 
 
 class Kind(enum.IntEnum):
@@ -113,7 +130,6 @@ class Kind(enum.IntEnum):
 # -- between robots ---------------------------------------------------------------------------
 
 
-@message
 class RequestInfo(Message):
     """Where is a robot, and what is it? Answered with :class:`RobotInfo`.
 
@@ -121,7 +137,6 @@ class RequestInfo(Message):
     """
 
 
-@message
 class RobotInfo(Message):
     """A robot's position, kind and current speed (0 when immobile)."""
 
@@ -131,34 +146,28 @@ class RobotInfo(Message):
     speed: Speed
 
 
-@message
 class RequestPartner(Message):
     """Will you take ``bucket`` (NEGOTIATION)? Answered with :class:`PartnerAnswer`.
 
-    The asker's position and kind, and the bucket's destination: the Sink ``sink``
-    at ``sink_x, sink_y``. An accepted request's ``msg_id`` becomes the
-    partnership's ``deal``: the later messages of the partnership carry it, so a
-    late message of an earlier partnership between the same two robots is never
-    taken for one of this partnership.
+    The asker's position and kind, and the bucket's destination. An accepted
+    request's ``msg_id`` becomes the partnership's ``deal``: the later messages
+    of the partnership carry it, so a late message of an earlier partnership
+    between the same two robots is never taken for one of this partnership.
     """
 
     x: Coordinate
     y: Coordinate
     kind: Kind
     bucket: int
-    sink: int
-    sink_x: Coordinate
-    sink_y: Coordinate
+    to: Destination
 
 
-@message
 class PartnerAnswer(Message):
     """The answer to a :class:`RequestPartner`: ACCEPT or DENY, and the replier's kind."""
 
     kind: Kind
 
 
-@message
 class Meet(Message):
     """The giver's position, kind and speed now (0 when immobile), to agree where to meet.
 
@@ -172,7 +181,6 @@ class Meet(Message):
     deal: int
 
 
-@message
 class MeetingPoint(Message):
     """The answer to :class:`Meet`: ACCEPT with where to meet, or DENY.
 
@@ -185,14 +193,12 @@ class MeetingPoint(Message):
     deal: int
 
 
-@message
 class Meeting(Message):
     """Waiting for the partner at the meeting point (NEGOTIATION), and "here too" (ACCEPT)."""
 
     deal: int
 
 
-@message
 class Handover(Message):
     """Sent by the giver once ``bucket`` is in the partner's hands."""
 
@@ -203,17 +209,13 @@ class Handover(Message):
 # -- down the stack: responsibilities ---------------------------------------------------------
 
 
-@message
 class MoveBucket(Message):
-    """Goal to Strategy: get ``bucket`` to the Sink ``sink`` at ``sink_x, sink_y``."""
+    """Goal to Strategy: get ``bucket`` to its destination ``to``."""
 
     bucket: int
-    sink: int
-    sink_x: Coordinate
-    sink_y: Coordinate
+    to: Destination
 
 
-@message
 class Partnered(Message):
     """Strategy to Group Activity: a partnership with ``partner`` over ``bucket``.
 
@@ -224,13 +226,10 @@ class Partnered(Message):
     partner: int
     giver: bool
     bucket: int
-    sink: int
-    sink_x: Coordinate
-    sink_y: Coordinate
+    to: Destination
     deal: int
 
 
-@message
 class Carry(Message):
     """Strategy to Task (through Group Activity): carry the bucket alone to ``x, y``."""
 
@@ -238,7 +237,6 @@ class Carry(Message):
     y: Coordinate
 
 
-@message
 class MeetAt(Message):
     """Group Activity to Task: meet ``partner`` at ``x, y`` and swap the bucket there.
 
@@ -250,16 +248,13 @@ class MeetAt(Message):
     y: Coordinate
     giver: bool
     bucket: int
-    sink: int
-    sink_x: Coordinate
-    sink_y: Coordinate
+    to: Destination
     deal: int
 
 
 # -- up the stack: completions ----------------------------------------------------------------
 
 
-@message
 class Exchanged(Message):
     """Task to Goal: ``bucket`` changed hands with ``partner``; this robot is at ``x, y``.
 
@@ -273,12 +268,9 @@ class Exchanged(Message):
     has_bucket: bool
     x: Coordinate
     y: Coordinate
-    sink: int
-    sink_x: Coordinate
-    sink_y: Coordinate
+    to: Destination
 
 
-@message
 class Moved(Message):
     """Task to Strategy: a :class:`Carry` leg is done; the robot is at ``x, y``."""
 
@@ -286,7 +278,6 @@ class Moved(Message):
     y: Coordinate
 
 
-@message
 class Abandoned(Message):
     """Task or Group Activity to Strategy: the partnership with ``partner`` was given up.
 
@@ -301,14 +292,12 @@ class Abandoned(Message):
 # -- to the Action layer ----------------------------------------------------------------------
 
 
-@message
 class RequestRobotsInRange(Message):
     """Which robots are within ``radius``? Answered with :class:`RobotsInRange`."""
 
     radius: Distance
 
 
-@message
 class RobotsInRange(Message):
     """The robots within range, nearest first (``ids`` at ``xs, ys``).
 
@@ -324,12 +313,10 @@ class RobotsInRange(Message):
     speed: Speed
 
 
-@message
 class MakeBucket(Message):
     """Make a new bucket in the robot's hands (a Generator). Answered with :class:`BucketMade`."""
 
 
-@message
 class BucketMade(Message):
     """The bucket made, and where the robot is."""
 
@@ -338,12 +325,10 @@ class BucketMade(Message):
     y: Coordinate
 
 
-@message
 class Where(Message):
     """No action: report the pose, and whether the robot holds a bucket."""
 
 
-@message
 class Rotate(Message):
     """Turn to face ``x, y``."""
 
@@ -351,7 +336,6 @@ class Rotate(Message):
     y: Coordinate
 
 
-@message
 class Move(Message):
     """Drive to ``x, y``."""
 
@@ -359,14 +343,12 @@ class Move(Message):
     y: Coordinate
 
 
-@message
 class HoldOut(Message):
     """Hold the hands out to ``partner``: a hand-over from it may succeed (the thesis's Accept)."""
 
     partner: int
 
 
-@message
 class Withdraw(Message):
     """Withdraw the hands from ``partner``; report whether ``bucket`` is in them."""
 
@@ -374,7 +356,6 @@ class Withdraw(Message):
     bucket: int
 
 
-@message
 class Give(Message):
     """Hand ``bucket`` over to ``partner`` (it fails into hands not held out)."""
 
@@ -382,7 +363,6 @@ class Give(Message):
     partner: int
 
 
-@message
 class Take(Message):
     """Take ``bucket``, which ``partner`` reported handing over (a Sink disposes of it)."""
 
@@ -390,7 +370,6 @@ class Take(Message):
     partner: int
 
 
-@message
 class CompletionStatus(Message):
     """The Action layer's report of a :data:`Command`: the robot's pose now.
 

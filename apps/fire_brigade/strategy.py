@@ -35,6 +35,7 @@ from .estimate import distance
 from .messages import (
     Abandoned,
     Carry,
+    Destination,
     Exchanged,
     Kind,
     MoveBucket,
@@ -162,8 +163,7 @@ class Strategy(BrigadeLayer):
         """From the Goal layer: a bucket to move; from below: a hand-over or a leg done."""
         match msg:
             case MoveBucket():
-                self.bucket, self.sink = msg.bucket, msg.sink
-                self.sink_at = (msg.sink_x, msg.sink_y)
+                self.bucket, self.sink, self.sink_at = msg.bucket, msg.to.sink, msg.to.at
                 self.radius = self.params.range
                 await self._search()
             case Moved():
@@ -232,9 +232,7 @@ class Strategy(BrigadeLayer):
                 self.here[1],
                 self.kind,
                 bucket=self.bucket,
-                sink=self.sink,
-                sink_x=self.sink_at[0],
-                sink_y=self.sink_at[1],
+                to=Destination(self.sink, *self.sink_at),
                 msg_type=MsgType.NEGOTIATION,
             )
             self.send(self.asked, request)
@@ -275,7 +273,7 @@ class Strategy(BrigadeLayer):
         """Answers partnership requests; takes the answers to this robot's own."""
         match msg:
             case RequestPartner(msg_type=MsgType.NEGOTIATION):
-                if self.in_world((msg.x, msg.y), (msg.sink_x, msg.sink_y)):
+                if self.in_world((msg.x, msg.y), msg.to.at):
                     self._answer(msg)
                 else:
                     self.unexpected(msg, "a position outside the world")
@@ -311,8 +309,7 @@ class Strategy(BrigadeLayer):
         if not self._free(msg.kind):
             self.reply(msg, PartnerAnswer(self.kind, msg_type=MsgType.DENY))
             return
-        self.bucket, self.sink = -1, msg.sink
-        self.sink_at = (msg.sink_x, msg.sink_y)
+        self.bucket, self.sink, self.sink_at = -1, msg.to.sink, msg.to.at
         self._partnered(msg.robot_id, giver=False, bucket=msg.bucket, deal=msg.msg_id)
         self.reply(msg, PartnerAnswer(self.kind))
 
@@ -327,9 +324,7 @@ class Strategy(BrigadeLayer):
                 partner=partner,
                 giver=giver,
                 bucket=bucket,
-                sink=self.sink,
-                sink_x=self.sink_at[0],
-                sink_y=self.sink_at[1],
+                to=Destination(self.sink, *self.sink_at),
                 deal=deal,
             )
         )

@@ -233,9 +233,7 @@ class Task(BrigadeLayer):
                 has_bucket=done.has_bucket,  # a Sink disposes of what it receives
                 x=self.x,
                 y=self.y,
-                sink=plan.sink,
-                sink_x=plan.sink_x,
-                sink_y=plan.sink_y,
+                to=plan.to,
             )
         )
 

@@ -31,7 +31,19 @@ import json
 import math
 import types
 from collections.abc import Collection, Mapping, Sequence
-from typing import Any, Final, Literal, TypeVar, Union, get_args, get_origin, get_type_hints
+from typing import (
+    Annotated,
+    Any,
+    Final,
+    Literal,
+    TypeVar,
+    Union,
+    get_args,
+    get_origin,
+    get_type_hints,
+)
+
+import msgspec
 
 from .._errors import ConfigurationError
 
@@ -86,25 +98,47 @@ class ScenarioError(ConfigurationError):
 
 @dataclasses.dataclass(frozen=True, slots=True)
 class _Bounds:
-    ge: float | None = None
-    gt: float | None = None
-    le: float | None = None
-    lt: float | None = None
+    """A setting's bounds, as a ``msgspec.Meta`` states them (messages state theirs so too)."""
+
+    meta: msgspec.Meta
 
     def admit(self, value: float) -> bool:
+        meta = self.meta
         return (
-            (self.ge is None or value >= self.ge)
-            and (self.gt is None or value > self.gt)
-            and (self.le is None or value <= self.le)
-            and (self.lt is None or value < self.lt)
+            (meta.ge is None or value >= meta.ge)
+            and (meta.gt is None or value > meta.gt)
+            and (meta.le is None or value <= meta.le)
+            and (meta.lt is None or value < meta.lt)
         )
 
     def __str__(self) -> str:
-        limits = ((">=", self.ge), (">", self.gt), ("<=", self.le), ("<", self.lt))
+        meta = self.meta
+        limits = ((">=", meta.ge), (">", meta.gt), ("<=", meta.le), ("<", meta.lt))
         return " and ".join(f"{op} {show(bound)}" for op, bound in limits if bound is not None)
 
 
-_NO_BOUNDS: Final = _Bounds()
+_NO_BOUNDS: Final = _Bounds(msgspec.Meta())
+
+
+def _bounds_of(field: dataclasses.Field[Any], hint: Any) -> tuple[Any, _Bounds]:
+    """The field's type without its ``Annotated`` bounds, and the bounds of both ways.
+
+    A setting's bounds are written ``setting(3.0, gt=0)``, or in its annotation as
+    a message field's are: ``Annotated[float, msgspec.Meta(gt=0)]``.
+    """
+    metas = [field.metadata[_BOUNDS]] if _BOUNDS in field.metadata else []
+    if get_origin(hint) is Annotated:
+        hint, *extras = get_args(hint)
+        metas += [extra for extra in extras if isinstance(extra, msgspec.Meta)]
+    limits: dict[str, Any] = {}
+    for meta in metas:
+        for name in ("ge", "gt", "le", "lt"):
+            value = getattr(meta, name)
+            if value is not None:
+                if name in limits:
+                    raise TypeError(f"{field.name}: bound {name} given twice")
+                limits[name] = value
+    return hint, _Bounds(msgspec.Meta(**limits)) if limits else _NO_BOUNDS
 
 
 def setting(
@@ -137,7 +171,9 @@ def setting(
     Raises:
         ValueError: both ``default`` and ``default_factory`` are given.
     """
-    metadata = {"doc": doc, _BOUNDS: _Bounds(ge, gt, le, lt)}
+    limits: dict[str, Any] = {"ge": ge, "gt": gt, "le": le, "lt": lt}
+    meta = msgspec.Meta(**{name: value for name, value in limits.items() if value is not None})
+    metadata = {"doc": doc, _BOUNDS: meta}
     return dataclasses.field(default=default, default_factory=default_factory, metadata=metadata)
 
 
@@ -172,12 +208,11 @@ def from_toml(
 @functools.cache
 def _fields(cls: type[Any]) -> tuple[tuple[str, Any, _Bounds, bool], ...]:
     """``(name, type, bounds, required)`` of each field set by ``__init__``."""
-    hints = get_type_hints(cls)
+    hints = get_type_hints(cls, include_extras=True)
     return tuple(
         (
             field.name,
-            hints[field.name],
-            field.metadata.get(_BOUNDS, _NO_BOUNDS),
+            *_bounds_of(field, hints[field.name]),
             field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING,
         )
         for field in dataclasses.fields(cls)

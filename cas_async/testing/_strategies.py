@@ -1,17 +1,14 @@
-"""Hypothesis strategies of messages, made from their ``@message`` annotations."""
+"""Hypothesis strategies of messages, made from msgspec's description of their fields."""
 
 from __future__ import annotations
 
-import enum
-import math
-import types
 import typing
-from typing import Annotated, Any
+from typing import Any
 
+import msgspec.inspect as mi
 import numpy as np
 
-from .._bounds import Bounds
-from .._message import Message, spec_of
+from .._message import Message, field_names
 
 if typing.TYPE_CHECKING:
     from hypothesis.strategies import SearchStrategy
@@ -25,12 +22,13 @@ _MAX_ITEMS: typing.Final = 6
 
 
 def strategy_for(cls: type[Message]) -> SearchStrategy[Any]:
-    """A Hypothesis strategy of ``cls`` messages, every field drawn from its annotation.
+    """A Hypothesis strategy of ``cls`` messages, every field drawn from its type.
 
     Fields follow their types, bounds included (``Annotated[float, Finite]`` draws
-    no NaN, ``Bounds(ge=0)`` nothing below 0; unbounded floats draw NaN and
-    infinities too); nested messages, enums, optional fields, lists, tuples, dicts
-    and numpy arrays are drawn in kind. Headers are left unset. For example::
+    no NaN, ``msgspec.Meta(ge=0)`` nothing below 0; unbounded floats draw NaN and
+    infinities too); nested structs and messages, enums, optional fields, lists,
+    tuples, dicts and numpy arrays are drawn in kind. Headers are left unset. For
+    example::
 
         @given(strategy_for(Meet))
         def test_meet_survives_the_codec(meet: Meet) -> None:
@@ -38,15 +36,12 @@ def strategy_for(cls: type[Message]) -> SearchStrategy[Any]:
 
     Raises:
         ImportError: Hypothesis is not installed (``pip install cas_async[test]``).
-        TypeError: ``cls`` is not a ``@message`` class.
+        TypeError: ``cls`` is not a message class.
     """
     _require_hypothesis()
-    from hypothesis import strategies as st
-
-    spec = spec_of(cls)
-    hints = typing.get_type_hints(cls, include_extras=True)
-    fields = {name: _strategy(hints[name], f"{cls.__name__}.{name}") for name in spec.field_names}
-    return st.builds(cls, **fields)
+    if not (isinstance(cls, type) and issubclass(cls, Message)) or cls is Message:
+        raise TypeError(f"strategy_for needs a message class (a Message subclass), got {cls!r}")
+    return _struct(typing.cast(mi.StructType, mi.type_info(cls)), field_names(cls))
 
 
 def _require_hypothesis() -> None:
@@ -58,77 +53,79 @@ def _require_hypothesis() -> None:
         ) from exc
 
 
-def _strategy(annotation: Any, where: str) -> SearchStrategy[Any]:
+def _struct(info: mi.StructType, names: tuple[str, ...] | None = None) -> SearchStrategy[Any]:
     from hypothesis import strategies as st
 
-    simple = {
-        int: st.integers(*_INT64),
-        float: st.floats(),
-        bool: st.booleans(),
-        str: st.text(max_size=20),
-        bytes: st.binary(max_size=20),
-        type(None): st.none(),
-        None: st.none(),
-    }
-    if annotation in simple:
-        return simple[annotation]
-    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
-    if origin is Annotated:
-        base, *extras = args
-        bounds = [extra for extra in extras if isinstance(extra, Bounds)]
-        return _bounded(base, bounds, where) if bounds else _strategy(base, where)
-    if annotation in (list, tuple, dict):
-        plain = _plain()
-        if annotation is dict:
-            return st.dictionaries(st.text(max_size=8), plain, max_size=_MAX_ITEMS)
-        items = st.lists(plain, max_size=_MAX_ITEMS)
-        return items if annotation is list else items.map(tuple)
-    if annotation is np.ndarray or origin is np.ndarray:
-        return _arrays()
-    if isinstance(annotation, type):
-        if issubclass(annotation, enum.IntEnum):
-            return st.sampled_from(list(annotation))
-        if issubclass(annotation, Message):
-            return strategy_for(annotation)
-    if origin in (typing.Union, types.UnionType):
-        return st.one_of(*(_strategy(option, where) for option in args))
-    if origin is list and len(args) == 1:
-        return st.lists(_strategy(args[0], where), max_size=_MAX_ITEMS)
-    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
-        return st.lists(_strategy(args[0], where), max_size=_MAX_ITEMS).map(tuple)
-    if origin is tuple and args:
-        return st.tuples(*(_strategy(arg, where) for arg in args))
-    if origin is dict and len(args) == 2:
-        keys, values = (_strategy(arg, where) for arg in args)
-        return st.dictionaries(keys, values, max_size=_MAX_ITEMS)
-    raise TypeError(f"{where}: no strategy for {annotation!r}")
+    chosen = {f.name: f for f in info.fields if names is None or f.name in names}
+    return st.builds(info.cls, **{name: _strategy(f.type) for name, f in chosen.items()})
 
 
-def _bounded(base: Any, bounds: list[Bounds], where: str) -> SearchStrategy[Any]:
+def _strategy(node: mi.Type) -> SearchStrategy[Any]:
     from hypothesis import strategies as st
 
-    low = max((b for bound in bounds for b in (bound.ge, bound.gt) if b is not None), default=None)
-    high = min((b for bound in bounds for b in (bound.le, bound.lt) if b is not None), default=None)
-    exclude_low = any(bound.gt is not None and bound.gt == low for bound in bounds)
-    exclude_high = any(bound.lt is not None and bound.lt == high for bound in bounds)
-    if base is int:
-        lowest = _INT64[0] if low is None else math.ceil(low)
-        if exclude_low and lowest == low:
-            lowest += 1
-        highest = _INT64[1] if high is None else math.floor(high)
-        if exclude_high and highest == high:
-            highest -= 1
-        return st.integers(max(lowest, _INT64[0]), min(highest, _INT64[1]))
-    if base is not float:
-        raise TypeError(f"{where}: bounds on {base!r}")
-    finite = any(bound.finite for bound in bounds) or low is not None or high is not None
+    match node:
+        case mi.Metadata(type=inner):
+            return _strategy(inner)
+        case mi.IntType():
+            return _integers(node)
+        case mi.FloatType():
+            return _floats(node)
+        case mi.BoolType():
+            return st.booleans()
+        case mi.StrType():
+            return st.text(max_size=20)
+        case mi.BytesType():
+            return st.binary(max_size=20)
+        case mi.NoneType():
+            return st.none()
+        case mi.AnyType():
+            return _plain()
+        case mi.EnumType(cls=kind):
+            return st.sampled_from(list(kind))
+        case mi.LiteralType(values=values):
+            return st.sampled_from(list(values))
+        case mi.UnionType(types=options):
+            return st.one_of(*(_strategy(option) for option in options))
+        case mi.ListType(item_type=item):
+            return st.lists(_strategy(item), max_size=_MAX_ITEMS)
+        case mi.VarTupleType(item_type=item):
+            return st.lists(_strategy(item), max_size=_MAX_ITEMS).map(tuple)
+        case mi.TupleType(item_types=items):
+            return st.tuples(*(_strategy(item) for item in items))
+        case mi.DictType(key_type=keys, value_type=values):
+            return st.dictionaries(_strategy(keys), _strategy(values), max_size=_MAX_ITEMS)
+        case mi.StructType(cls=kind):
+            names = field_names(kind) if issubclass(kind, Message) else None
+            return st.deferred(lambda: _struct(node, names))
+        case mi.CustomType(cls=kind) if issubclass(kind, np.ndarray):
+            return _arrays()
+    raise TypeError(f"no strategy for {node!r}")
+
+
+def _integers(node: mi.IntType) -> SearchStrategy[int]:
+    from hypothesis import strategies as st
+
+    low = node.ge if node.ge is not None else None if node.gt is None else node.gt + 1
+    high = node.le if node.le is not None else None if node.lt is None else node.lt - 1
+    return st.integers(
+        _INT64[0] if low is None else max(low, _INT64[0]),
+        _INT64[1] if high is None else min(high, _INT64[1]),
+    )
+
+
+def _floats(node: mi.FloatType) -> SearchStrategy[float]:
+    from hypothesis import strategies as st
+
+    low = node.ge if node.ge is not None else node.gt
+    high = node.le if node.le is not None else node.lt
+    bounded = low is not None or high is not None  # msgspec refuses NaN under any bound
     return st.floats(
-        min_value=low,
-        max_value=high,
-        exclude_min=exclude_low,
-        exclude_max=exclude_high,
-        allow_nan=not finite,
-        allow_infinity=not finite,
+        min_value=None if low is None else float(low),
+        max_value=None if high is None else float(high),
+        exclude_min=node.gt is not None,
+        exclude_max=node.lt is not None,
+        allow_nan=not bounded,
+        allow_infinity=not bounded,
     )
 
 

@@ -8,15 +8,16 @@ Inside a robot (Plan asks, Drive answers; internal):
 
 * ``DriveTo`` / ``Arrived``: drive to (x, y); the answer says where the robot stopped.
 
-Wire names carry the app's prefix: they must be unique in every process that
-imports these classes (another app may well have its own ``DriveTo``).
+Each class is a message by deriving from ``Message``: its fields are positional
+(``Position(1.0, 2.0)``), its header is filled by the runtime. A robot decodes
+only the messages of its own stack, so another app's ``DriveTo`` never clashes.
 """
 
 from __future__ import annotations
 
 from typing import Annotated, TypeAlias
 
-from cas_async import Finite, Message, message
+from cas_async import Finite, Message
 
 __all__ = ["MESSAGES", "Arrived", "Coordinate", "DriveTo", "Position"]
 
@@ -24,7 +25,6 @@ Coordinate: TypeAlias = Annotated[float, Finite]
 """A position's x or y, in metres (checked on arrival: a NaN never reaches a layer)."""
 
 
-@message(name="gathering.Position")
 class Position(Message):
     """Where the sender stands."""
 
@@ -32,7 +32,6 @@ class Position(Message):
     y: Coordinate
 
 
-@message(name="gathering.DriveTo")
 class DriveTo(Message):
     """Drive to ``(x, y)``: a request to the robotic layer, answered with :class:`Arrived`."""
 
@@ -40,7 +39,6 @@ class DriveTo(Message):
     y: Coordinate
 
 
-@message(name="gathering.Arrived")
 class Arrived(Message):
     """The drive is over: the robot stands at ``(x, y)``."""
 

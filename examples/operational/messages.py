@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from typing import Annotated, TypeAlias
 
-from cas_async import Finite, Message, message
+from cas_async import Finite, Message
 
 __all__ = [
     "MESSAGES",
@@ -48,12 +48,10 @@ Coordinate: TypeAlias = Annotated[float, Finite]
 # -- between robots -----------------------------------------------------------------------
 
 
-@message(name="rendezvous.Hello")
 class Hello(Message):
     """A robot has just started: the robots that receive it introduce themselves."""
 
 
-@message(name="rendezvous.Introduce")
 class Introduce(Message):
     """The asker's home (NEGOTIATION), answered with the replier's :class:`Home`."""
 
@@ -61,7 +59,6 @@ class Introduce(Message):
     y: Coordinate
 
 
-@message(name="rendezvous.Home")
 class Home(Message):
     """The answer to :class:`Introduce`: where the replier started."""
 
@@ -69,7 +66,6 @@ class Home(Message):
     y: Coordinate
 
 
-@message(name="rendezvous.Arrived")
 class Arrived(Message):
     """The sender is at the rendezvous ``(x, y)`` (the point it agreed to)."""
 
@@ -80,12 +76,10 @@ class Arrived(Message):
 # -- inside a robot -----------------------------------------------------------------------
 
 
-@message(name="rendezvous.Locate")
 class Locate(Message):
     """Where is the robot? (NEGOTIATION to the robotic layer), answered with :class:`Located`."""
 
 
-@message(name="rendezvous.Located")
 class Located(Message):
     """The robot's position and heading now."""
 
@@ -94,7 +88,6 @@ class Located(Message):
     heading: Annotated[float, Finite]
 
 
-@message(name="rendezvous.DriveTo")
 class DriveTo(Message):
     """Drive to ``(x, y)``: leg number ``leg``, after the legs asked for before it."""
 
@@ -103,7 +96,6 @@ class DriveTo(Message):
     leg: int
 
 
-@message(name="rendezvous.Reached")
 class Reached(Message):
     """Leg number ``leg`` is over: the robot stands at ``(x, y)``."""
 

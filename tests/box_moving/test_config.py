@@ -11,7 +11,7 @@ import pytest
 from apps.box_moving import MESSAGES, app
 from apps.box_moving.config import BoxMovingConfig, Destination, ObjectSpec, RobotSpec, Scatter
 from apps.box_moving.layout import drop_spots, place_objects
-from cas_async import spec_of
+from cas_async._message import wire_name
 from cas_async.scenario import ScenarioError, load_scenario
 from tests.box_moving.helpers import SCENARIOS
 
@@ -103,9 +103,7 @@ def test_scattered_objects_follow_the_seed_and_each_has_its_own_drop_spot() -> N
     assert all(1.0 <= box.x <= 6.0 and 2.0 <= box.weight <= 12.0 for box in boxes[1:])
 
 
-def test_every_message_has_a_wire_name_of_its_own() -> None:
-    names = [spec_of(cls).name for cls in MESSAGES]
-    assert len(set(names)) == len(names)
-    assert all(
-        name == f"box_moving.{cls.__name__}" for name, cls in zip(names, MESSAGES, strict=True)
-    )
+def test_every_message_has_a_tag_of_its_own_named_by_its_module() -> None:
+    tags = [cls.__struct_config__.tag for cls in MESSAGES]
+    assert len(set(tags)) == len(tags)
+    assert all(wire_name(cls) == f"apps.box_moving.messages.{cls.__name__}" for cls in MESSAGES)

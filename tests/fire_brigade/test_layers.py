@@ -26,6 +26,7 @@ from apps.fire_brigade.estimate import carrying_time, distance, meeting_point
 from apps.fire_brigade.goal import Goal
 from apps.fire_brigade.group_activity import GroupActivity
 from apps.fire_brigade.messages import (
+    Destination,
     Kind,
     PartnerAnswer,
     RequestPartner,
@@ -132,7 +133,7 @@ class Asker(Layer):
 
     async def ask(self, robot: int, kind: Kind) -> MsgType:
         """How ``robot`` answers a giver of ``kind`` (ACCEPT or DENY)."""
-        request = RequestPartner(0.0, 0.0, kind, bucket=99, sink=2, sink_x=5.0, sink_y=9.0)
+        request = RequestPartner(0.0, 0.0, kind, bucket=99, to=Destination(2, 5.0, 9.0))
         answer = await self.request(robot, request, reply=PartnerAnswer)
         return answer.msg_type
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import cas_async
 from apps.fire_brigade import MESSAGES, TimeStrategy
-from apps.fire_brigade.messages import Exchanged, Kind, RequestPartner
+from apps.fire_brigade.messages import Destination, Exchanged, Kind, RequestPartner
 from cas_async import Layer, MemoryTransport, Message, MsgType, Robot, Swarm, VirtualClock
 from tests.fire_brigade.test_strategies import params
 
@@ -25,9 +25,7 @@ def _ask(target: int, asker: Asker) -> None:
         1.0,
         Kind.TRANSPORTER,
         bucket=9,
-        sink=3,
-        sink_x=5.0,
-        sink_y=19.0,
+        to=Destination(3, 5.0, 19.0),
         msg_type=MsgType.NEGOTIATION,
     )
     asker.send(target, request)
@@ -48,7 +46,7 @@ def test_a_transporter_that_just_received_a_bucket_refuses_partners() -> None:
             await clock.sleep(1)
             # the first partnership completes, and this robot now holds the bucket
             exchanged = Exchanged(
-                partner=2, bucket=9, has_bucket=True, x=1.0, y=1.0, sink=3, sink_x=5.0, sink_y=19.0
+                partner=2, bucket=9, has_bucket=True, x=1.0, y=1.0, to=Destination(3, 5.0, 19.0)
             )
             await strategy.store_intra_msg(exchanged)
             _ask(1, asker)
