@@ -31,6 +31,7 @@ from .._clock import ScaledClock
 from .._errors import ConfigurationError
 from .._pose import Pose
 from ..transport._zenoh import loopback_config
+from ._endpoints import RosSubscription
 from ._extra import import_zenoh
 from ._graph import GraphEntity
 from ._link import RosLink
@@ -114,6 +115,8 @@ class FakeRobot:
         self.cmd_vel_timeout = cmd_vel_timeout
         self.cmd_vel_type = cmd_vel_type
         self.ticks = 0
+        self.commands: RosSubscription | None = None
+        """The ``cmd_vel`` subscription (its counts), once :meth:`run` has begun."""
         self._on_graph = on_graph
         self._router: Any = None
         self._seen: dict[str, GraphEntity] = {}
@@ -147,7 +150,7 @@ class FakeRobot:
 
     async def run(self, stop: asyncio.Event) -> None:
         """Drives from ``/cmd_vel`` and publishes ``/odom`` until ``stop`` is set."""
-        cmd_vel = self.link.subscribe("cmd_vel", self.cmd_vel_type)
+        cmd_vel = self.commands = self.link.subscribe("cmd_vel", self.cmd_vel_type)
         odom = self.link.publisher("odom", _ODOM)
         clock, period = self.clock, self.clock.time_factor / self.rate
         clock.start()
