@@ -73,7 +73,7 @@ class RosDiffDrive(Middleware):
         discovery_timeout: seconds :meth:`start` waits for the robot's topics.
         odom_timeout: seconds without odometry that fail a move or :meth:`start`.
         move_timeout: seconds a move may take; ``None``: three times its expected
-            time plus 5 s.
+            time plus 5 s. Every time-out is in seconds of ``clock``.
 
     Raises:
         ConfigurationError: a bad parameter.
@@ -147,7 +147,9 @@ class RosDiffDrive(Middleware):
                 (odom, "MP", self._odometry.entity),
             )
             for topic, kind, ours in wanted:
-                peer = await self._link.wait_for(topic, kind, self._discovery_timeout)
+                peer = await self._link.wait_for(
+                    topic, kind, self._clock.loop_seconds(self._discovery_timeout)
+                )
                 self._check(
                     topic,
                     ours.type_name,

@@ -74,6 +74,13 @@ class RosPublisher:
         attachment = Attachment(self.published, self._clock_ns(), self._gid).to_bytes()
         self._publisher.put(payload, attachment=attachment)
 
+    @property
+    def matched(self) -> bool:
+        """Whether some subscriber of the topic's key is known to the session now."""
+        if self._closed:
+            return False
+        return bool(self._publisher.matching_status.matching)
+
     def close(self) -> None:
         """Withdraws the publisher and its token; idempotent."""
         if self._closed:

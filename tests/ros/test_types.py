@@ -16,8 +16,8 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from cas_async import ConfigurationError, EncodeError  # noqa: E402
-from cas_async.ros import DISTRO, DISTROS, TypeCatalog  # noqa: E402
+from cas_async import ConfigurationError, EncodeError
+from cas_async.ros import DISTRO, DISTROS, TypeCatalog
 
 DATA = Path(__file__).resolve().parent / "data"
 GOLDEN: dict[str, Any] = json.loads((DATA / "golden.json").read_text())
