@@ -75,7 +75,7 @@ async def _fake_robot(args: argparse.Namespace) -> int:
     print(
         f"fake robot stopped at ({pose.x:.3f}, {pose.y:.3f}, heading {pose.heading:.3f}) after "
         f"{robot.ticks} odometry messages; cmd_vel received {received}, dropped {dropped}; "
-        f"session closed: {robot.link.session is None}",
+        f"tokens refused {robot.link.bad_tokens}; session closed: {robot.link.session is None}",
         flush=True,
     )
     return 0
