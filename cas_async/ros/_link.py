@@ -171,9 +171,9 @@ class RosLink:
         """
         if self._state != "unopened":
             raise RobotStateError(f"RosLink {self.node!r} is {self._state}: a link opens once")
-        self._state = "opening"
         zenoh = import_zenoh()
         types = self.types  # an unsupported distro fails here, before any connection
+        self._state = "opening"
         config = loopback_config(mode=self.mode, listen=self.listen, connect=self.connect)
         if self.mode == "client":
             config.insert_json5("connect/timeout_ms", str(int(self.open_timeout * 1000)))
