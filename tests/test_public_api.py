@@ -4,7 +4,8 @@
 * ``cas_async.transport``: what a transport author implements and wraps;
 * ``cas_async.sim``: the simulation kit (Environment, kinematics, simulated middleware);
 * ``cas_async.scenario``: scenario files and runs, and the contract of an application;
-* ``cas_async.testing``: what a user's test suite uses (with the pytest plugin).
+* ``cas_async.testing``: what a user's test suite uses (with the pytest plugin);
+* ``cas_async.ros``: ROS 2 robots over rmw_zenoh (the ``ros`` extra).
 
 Every other module is internal, and says so with a leading underscore in its path.
 
@@ -22,6 +23,7 @@ import types
 import pytest
 
 import cas_async
+import cas_async.ros
 import cas_async.scenario
 import cas_async.sim
 import cas_async.testing
@@ -29,12 +31,13 @@ import cas_async.transport
 
 FACES: dict[str, types.ModuleType] = {
     "cas_async": cas_async,
+    "cas_async.ros": cas_async.ros,
     "cas_async.scenario": cas_async.scenario,
     "cas_async.sim": cas_async.sim,
     "cas_async.testing": cas_async.testing,
     "cas_async.transport": cas_async.transport,
 }
-SUBPACKAGES = {"scenario", "sim", "testing", "transport"}
+SUBPACKAGES = {"ros", "scenario", "sim", "testing", "transport"}
 
 
 def _names(module: types.ModuleType) -> dict[str, object]:
@@ -51,7 +54,7 @@ def test_every_module_is_a_face_or_marked_internal() -> None:
         name
         for name in _modules()
         if name not in FACES
-        and name != "cas_async.__main__"
+        and not name.endswith(".__main__")
         and not any(part.startswith("_") for part in name.split(".")[1:])
     ]
     assert not public, f"modules neither a face nor internal (name them _module): {public}"

@@ -57,14 +57,14 @@ import json
 import re
 import threading
 import warnings
-from collections import deque
-from collections.abc import Callable, Iterable, Sequence
-from typing import TYPE_CHECKING, Any, Final, Generic, Literal, TypeVar, final
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Final, Literal, final
 
 from .._codec import DEFAULT_MAX_DATAGRAM
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .._types import Address, RobotId
 from ._base import DatagramSink, Endpoint, Transport
+from ._thread_inbox import ThreadInbox
 from ._udp import InsecureBindWarning
 
 if TYPE_CHECKING:
@@ -83,7 +83,6 @@ _LOCAL: Final = 1
 _APPEARED: Final = 2
 _GONE: Final = 3
 _Entry = tuple[int, str, bytes]
-E = TypeVar("E")
 
 
 def import_zenoh() -> Any:
@@ -127,39 +126,6 @@ def _beyond_loopback(endpoint: str) -> bool:
         return not ipaddress.ip_address(host).is_loopback
     except ValueError:  # a name, or an interface: assume the worst
         return host != "localhost"
-
-
-class ThreadInbox(Generic[E]):
-    """What Zenoh's threads hand to the event loop: one queue, one wake-up per batch.
-
-    ``drain`` is called on the loop with every entry queued since the last pass,
-    in order. The transport's entries are ``(kind, key, payload)``: :data:`_REMOTE`
-    (a datagram from another process, under its key), :data:`_LOCAL` (from this
-    process; the key is ``receiver/sender``), :data:`_APPEARED` or :data:`_GONE`
-    (a liveliness token). The runtime's control channel uses one too.
-    """
-
-    __slots__ = ("_drain", "_loop", "_queue", "_scheduled")
-
-    def __init__(self, loop: asyncio.AbstractEventLoop, drain: Callable[[list[E]], None]) -> None:
-        self._loop = loop
-        self._drain = drain
-        self._queue: deque[E] = deque()
-        self._scheduled = False
-
-    def put(self, entry: E) -> None:
-        """Called on a Zenoh thread (or the loop's): queues ``entry``, wakes the loop once."""
-        self._queue.append(entry)
-        if not self._scheduled:
-            self._scheduled = True
-            with contextlib.suppress(RuntimeError):  # the loop closed: nothing left to tell
-                self._loop.call_soon_threadsafe(self._run)
-
-    def _run(self) -> None:
-        self._scheduled = False  # first: what arrives from now on schedules another pass
-        queue = self._queue
-        entries = [queue.popleft() for _ in range(len(queue))]
-        self._drain(entries)
 
 
 @final

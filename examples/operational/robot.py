@@ -7,10 +7,18 @@ robot connects to the swarm's endpoint, introduces itself, meets the others at t
 rendezvous they agree on, stays ``--stay`` seconds once it has met ``--company`` robots
 there, and leaves (or on Ctrl-C / SIGTERM).
 
+With ``--ros ENDPOINT`` the middleware is a ROS 2 robot instead: a
+:class:`~cas_async.ros.RosDiffDrive` that drives it with ``/cmd_vel`` and reads its
+pose from ``/odom``, through a :class:`~cas_async.ros.RosLink` connected to the
+robot's ``rmw_zenohd`` at ``ENDPOINT`` (or to ``python -m cas_async.ros fake-robot``).
+``--x --y --heading`` then say where the robot's ``odom`` frame lies in the swarm's.
+
 Run, with the swarm already up (``python -m examples.operational.simulated``)::
 
     python -m examples.operational.robot [--id 10] [--x 8] [--y 6] [--speed 1]
         [--company 1] [--stay 2] [--time-factor 1] [--connect tcp/127.0.0.1:7447]
+        [--ros tcp/ROBOT:7447 [--heading 0] [--ros-namespace /] [--ros-domain 0]
+         [--cmd-vel-type geometry_msgs/msg/Twist]]
 
 Exit status: 0 once it has met the others, 1 if stopped before.
 """
@@ -21,12 +29,12 @@ import argparse
 import asyncio
 import contextlib
 import logging
-import math
 import signal
 import sys
 
 import cas_async
-from cas_async import ConstantSpeed, Pose, Robot, ScaledClock, ZenohTransport
+from cas_async import Clock, ConstantSpeed, Middleware, Pose, Robot, ScaledClock, ZenohTransport
+from cas_async.ros import RosDiffDrive, RosLink
 
 from .driver import StubDriver
 from .layers import Drive, Gather
@@ -36,16 +44,43 @@ from .network import ENDPOINT, NAMESPACE
 __all__ = ["main"]
 
 
+async def middleware(
+    args: argparse.Namespace, clock: Clock, stack: contextlib.AsyncExitStack
+) -> Middleware:
+    """The stub driver, or (``--ros``) a ROS 2 robot found and checked at its endpoint."""
+    speed = ConstantSpeed(args.speed)
+    if args.ros is None:
+        return StubDriver(args.id, Pose(args.x, args.y), clock, speed_profile=speed)
+    link = await stack.enter_async_context(
+        RosLink(
+            f"cas_robot_{args.id}",
+            namespace=args.ros_namespace,
+            domain_id=args.ros_domain,
+            connect=args.ros,
+        )
+    )
+    drive = RosDiffDrive(
+        link,
+        args.id,
+        clock,
+        speed_profile=speed,
+        origin=Pose(args.x, args.y, args.heading),
+        cmd_vel_type=args.cmd_vel_type,
+    )
+    await stack.enter_async_context(drive)  # found, its types checked, its first odometry
+    print(f"robot {args.id} drives the ROS 2 robot at {args.ros} ({link.nodes()})", flush=True)
+    return drive
+
+
 async def main(args: argparse.Namespace) -> bool:
     """Runs the robot until it has met its company, or is stopped; whether it met them."""
+    async with contextlib.AsyncExitStack() as stack:
+        return await _run(args, stack)
+
+
+async def _run(args: argparse.Namespace, stack: contextlib.AsyncExitStack) -> bool:
     clock = ScaledClock(args.time_factor)
-    driver = StubDriver(
-        args.id,
-        Pose(args.x, args.y),
-        clock,
-        speed_profile=ConstantSpeed(args.speed),
-        turn_rate=math.pi,
-    )
+    driver = await middleware(args, clock, stack)
     gather = Gather(company=args.company, stay=args.stay)
     transport = ZenohTransport(namespace=NAMESPACE, connect=[args.connect])
     robot = Robot(
@@ -74,6 +109,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--stay", type=float, default=2.0, help="seconds to stay once met")
     parser.add_argument("--time-factor", type=float, default=1.0, help="simulated s per wall s")
     parser.add_argument("--connect", default=ENDPOINT, help=f"Zenoh endpoint (default {ENDPOINT})")
+    parser.add_argument(
+        "--ros", default=None, help="drive the ROS 2 robot whose rmw_zenohd is here"
+    )
+    parser.add_argument("--heading", type=float, default=0.0, help="start heading, radians")
+    parser.add_argument("--ros-namespace", default="/", help="the ROS 2 robot's namespace")
+    parser.add_argument("--ros-domain", type=int, default=0, help="its ROS_DOMAIN_ID")
+    parser.add_argument(
+        "--cmd-vel-type",
+        default="geometry_msgs/msg/Twist",
+        choices=("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"),
+        help="what the robot's controller subscribes to on cmd_vel",
+    )
     return parser.parse_args(argv)
 
 
