@@ -16,6 +16,7 @@ ships the ``cas_async_pytest`` plugin.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import pkgutil
 import types
@@ -39,10 +40,8 @@ SUBPACKAGES = {"rl", "scenario", "sim", "testing", "transport"}
 EXTRAS = {"cas_async.rl": "rl"}
 """Faces that need an extra: checked where it is installed (CI installs them all)."""
 for _face in EXTRAS:
-    try:
+    with contextlib.suppress(ImportError):
         FACES[_face] = importlib.import_module(_face)
-    except ImportError:
-        pass
 
 
 def _names(module: types.ModuleType) -> dict[str, object]:

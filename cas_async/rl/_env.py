@@ -247,7 +247,11 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         for agent, action in actions.items():
             self._seats[agent].hold(action)
         start, end = self._steps * self.dt, (self._steps + 1) * self.dt
-        ended = episode.advance(start, end)
+        try:
+            ended = episode.advance(start, end)
+        except BaseException:  # the episode failed, or was interrupted: it is over
+            self.agents = []
+            raise
         self._steps += 1
         now = end if ended is None else min(end, ended.sim_time)
         done = episode.run.objective.progress().done

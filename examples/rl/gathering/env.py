@@ -9,8 +9,9 @@ every robot stands still when the step's observation is taken.
   point it knows (the centroid of the starts it heard), the distance to it over the
   world's diagonal, and 1 when it stands within the gathering radius (else 0).
 * Reward: the distance gained toward the meeting point during the step, in legs
-  (1 for a full leg straight at it), plus 0.5 for ending the step within the radius,
-  plus 5 for every robot when the last one gathers (the episode terminates).
+  (1 for a full leg straight at it), less 0.1 per step (waiting costs), plus 5 for
+  every robot when the last one gathers (the episode terminates): the sooner the
+  whole swarm gathers, the more each robot earns.
 
 The episode terminates when every robot stands within the radius at once (the
 gathering's objective); it is truncated at ``run.max_time`` (40 s: 80 steps).
@@ -53,6 +54,8 @@ STAY: Final = HEADINGS
 """The action that keeps a robot where it stands."""
 ACTIONS: Final = Discrete(HEADINGS + 1)
 OBSERVATIONS: Final = Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+STEP_COST: Final = 0.1
+COMPLETION_BONUS: Final = 5.0
 _JUST_UNDER: Final = 1 - 1e-6
 """A leg lasts this fraction of a step: it is over before the step ends."""
 
@@ -88,15 +91,15 @@ class Gathering:
         )
 
     def reward(self, layer: LearnedPlan, outcome: StepOutcome) -> float:
-        """Distance gained in legs, 0.5 for ending within the radius, 5 at completion."""
+        """Distance gained in legs, less 0.1 a step, plus 5 at completion."""
         meeting = layer.meeting
         if meeting is None:
             return 0.0
         pose = outcome.environment.pose_at(layer.robot_id, outcome.time)
         before = math.dist(layer.step_start, meeting)
         after = math.dist((pose.x, pose.y), meeting)
-        gathered = 0.5 if after <= self.radius else 0.0
-        return (before - after) / self.leg + gathered + (5.0 if outcome.complete else 0.0)
+        bonus = COMPLETION_BONUS if outcome.complete else 0.0
+        return (before - after) / self.leg - STEP_COST + bonus
 
     def act(self, layer: LearnedPlan, action: np.int64, here: Point) -> Point:
         """Where this step's leg ends: one leg along the heading, inside the world; or here."""
