@@ -60,18 +60,23 @@ class LinearSoftmax:
         return np.hstack([rows, np.ones((len(observations), 1))])
 
     def probabilities(self, phi: Floats) -> Floats:
-        logits = phi @ self.theta.T
-        logits -= logits.max(axis=1, keepdims=True)
-        weights = np.exp(logits)
-        return weights / weights.sum(axis=1, keepdims=True)  # type: ignore[no-any-return]
+        """One row of action probabilities per row of ``phi``."""
+        logits: Floats = phi @ self.theta.T
+        weights = np.exp(logits - logits.max(axis=1, keepdims=True))
+        probabilities: Floats = weights / weights.sum(axis=1, keepdims=True)
+        return probabilities
 
     def actions(self, phi: Floats) -> npt.NDArray[np.int64]:
         """Sampled (or, when ``greedy``, the likeliest) actions for the rows of ``phi``."""
         p = self.probabilities(phi)
+        chosen: npt.NDArray[np.int64]
         if self.greedy:
-            return p.argmax(axis=1).astype(np.int64)
-        draws = self.rng.random((len(p), 1))
-        return (draws > p.cumsum(axis=1)).sum(axis=1).clip(max=p.shape[1] - 1).astype(np.int64)
+            chosen = p.argmax(axis=1).astype(np.int64)
+        else:  # inverse transform sampling, one uniform draw per row
+            draws = self.rng.random((len(p), 1))
+            below = (draws > p.cumsum(axis=1)).sum(axis=1)
+            chosen = below.clip(max=p.shape[1] - 1).astype(np.int64)
+        return chosen
 
     def __call__(self, observations: Mapping[str, npt.NDArray[np.float32]]) -> dict[str, np.int64]:
         agents = list(observations)
