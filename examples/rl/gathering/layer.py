@@ -29,6 +29,7 @@ class LearnedPlan(PolicyLayer, Plan):
         super().__init__(home, team, patience)
         self.here: Point = home
         self.step_start: Point = home
+        self._meeting: tuple[int, Point] | None = None  # (positions heard, their centroid)
 
     async def inner_process(self) -> None:
         if self.robot_id not in self.heard:  # at start: tell everyone where this robot is
@@ -47,4 +48,8 @@ class LearnedPlan(PolicyLayer, Plan):
     @property
     def meeting(self) -> Point | None:
         """The centroid of the positions heard so far (``None`` before the robot started)."""
-        return centroid(self.heard.values()) if self.heard else None
+        if not self.heard:
+            return None
+        if self._meeting is None or self._meeting[0] != len(self.heard):  # heard more since
+            self._meeting = (len(self.heard), centroid(self.heard.values()))
+        return self._meeting[1]
