@@ -129,7 +129,7 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         self._act: Act | None = act
         self._observation_space = observation_space
         self._action_space = action_space
-        self.dt = float(dt)
+        self._dt = float(dt)
         self.render_mode = render_mode
         self._check = check
         self._seeds = np.random.default_rng(base.run.seed)
@@ -146,6 +146,11 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         self._prepared = (base.run.seed, first)
         self._robots = {agent_name(robot): robot for robot in first.layers}
         self.possible_agents: list[str] = list(self._robots)
+
+    @property
+    def dt(self) -> float:
+        """Simulated seconds per step."""
+        return self._dt
 
     # -- the spaces -------------------------------------------------------------------------
 
@@ -177,8 +182,8 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         """
         self._check_open("reset")
         if seed is not None:
-            if seed < 0:
-                raise ValueError(f"reset(): seed must be 0 or more, got {seed}")
+            if not isinstance(seed, int | np.integer) or isinstance(seed, bool) or seed < 0:
+                raise ValueError(f"reset(): expected a seed of 0 or more, got {seed!r}")
             self._seeds = np.random.default_rng(seed)
             episode_seed = int(seed)
         elif self._episode is None and self._prepared is not None:
@@ -246,7 +251,7 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         self._check_actions(actions)
         for agent, action in actions.items():
             self._seats[agent].hold(action)
-        start, end = self._steps * self.dt, (self._steps + 1) * self.dt
+        start, end = self._steps * self._dt, (self._steps + 1) * self._dt
         try:
             ended = episode.advance(start, end)
         except BaseException:  # the episode failed, or was interrupted: it is over
@@ -361,7 +366,7 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         """The simulated instant the last step ended (0 after a reset)."""
         ended = self.result
         return (
-            self._steps * self.dt if ended is None else min(self._steps * self.dt, ended.sim_time)
+            self._steps * self._dt if ended is None else min(self._steps * self._dt, ended.sim_time)
         )
 
     # -- internals --------------------------------------------------------------------------

@@ -77,8 +77,7 @@ def test_holding_the_first_ranked_partner_is_the_time_strategy_to_the_last_bit(
     seed: int, dt: float, make: Callable[..., Any]
 ) -> None:
     builtin = run_scenario_file(FIRE_BRIGADE, f"run.seed={seed}", "strategy.name=time").result
-    env = make(fire_brigade)
-    env.dt = dt
+    env = make(fire_brigade, dt=dt)
     env.reset(seed=seed)
     steps = 0
     while env.agents:

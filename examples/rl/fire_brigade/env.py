@@ -135,6 +135,7 @@ def make_env(
     *,
     overrides: Sequence[str] = (),
     render_mode: str | None = None,
+    dt: float = DT,
 ) -> FireBrigadeEnv:
     """The Fire Brigade environment: ``scenario`` (with ``overrides``), its Strategy learned."""
     loaded = load_scenario(scenario, overrides)
@@ -148,6 +149,6 @@ def make_env(
         act=rules.act,
         observation_space=OBSERVATIONS,
         action_space=ACTIONS,
-        dt=DT,
+        dt=dt,
         render_mode=render_mode,
     )

@@ -118,12 +118,13 @@ def make_env(
     *,
     overrides: Sequence[str] = (),
     render_mode: str | None = None,
+    dt: float = DT,
 ) -> GatheringEnv:
     """The gathering environment: ``scenario`` (with ``overrides``), its Plan layer learned."""
     loaded = load_scenario(scenario, overrides)
     fleet, meeting = loaded.config.robots, loaded.config.gathering
     rules = Gathering(
-        leg=fleet.speed * DT * _JUST_UNDER,
+        leg=fleet.speed * dt * _JUST_UNDER,
         radius=meeting.radius,
         world=(loaded.world.width, loaded.world.height),
     )
@@ -136,6 +137,6 @@ def make_env(
         act=rules.act,
         observation_space=OBSERVATIONS,
         action_space=ACTIONS,
-        dt=DT,
+        dt=dt,
         render_mode=render_mode,
     )
