@@ -28,17 +28,12 @@ from pettingzoo import ParallelEnv
 
 from .._errors import ConfigurationError
 from .._types import RobotId
-from ..scenario._loader import (
-    Scenario,
-    apply_overrides,
-    load_scenario,
-    parse_override,
-    scenario_from_data,
-)
+from ..scenario._loader import Scenario
 from ..scenario._results import RunResult, RunStatus
 from ..scenario._runner import ScenarioRun
 from ._episode import Episode, StepOutcome
 from ._policy import Act, PolicyLayer, Seat, bind
+from ._recipe import Recipe, agent_name
 from ._render import draw
 
 __all__ = ["ParallelSwarmEnv"]
@@ -101,12 +96,7 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         render_mode: str | None = None,
         check: bool = True,
     ) -> None:
-        if isinstance(scenario, Scenario):
-            base = scenario
-            if overrides:
-                base = _revalidated(base, [parse_override(text) for text in overrides])
-        else:
-            base = load_scenario(scenario, overrides)
+        recipe = Recipe(scenario, overrides, level, layer)
         if not (isinstance(dt, int | float) and 0 < dt < float("inf")):
             raise ConfigurationError(f"dt: expected a positive number of seconds, got {dt!r}")
         for name, space in (
@@ -120,10 +110,7 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
                 f"render_mode: expected one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
-        self._base = base
-        self._index, self._level = _level_of(base, level)
-        self._layer_class = _policy_class(base, self._level, layer)
-        self._class_path = _class_path(self._layer_class)
+        self._recipe = recipe
         self._observe = observe
         self._reward = reward
         self._act: Act | None = act
@@ -132,7 +119,8 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         self._dt = float(dt)
         self.render_mode = render_mode
         self._check = check
-        self._seeds = np.random.default_rng(base.run.seed)
+        seed = recipe.scenario.run.seed
+        self._seeds = np.random.default_rng(seed)
         self._episode: Episode | None = None
         self._prepared: tuple[int, Episode] | None = None
         self._seats: dict[str, Seat] = {}
@@ -142,8 +130,8 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         self._closed = False
         self.agents: list[str] = []
         # The robots, known once built: the episode built here serves the first reset.
-        first = self._build(base.run.seed)
-        self._prepared = (base.run.seed, first)
+        first = recipe.episode(seed)
+        self._prepared = (seed, first)
         self._robots = {agent_name(robot): robot for robot in first.layers}
         self.possible_agents: list[str] = list(self._robots)
 
@@ -197,7 +185,7 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         else:
             if prepared is not None:
                 prepared[1].close()
-            episode = self._build(episode_seed)
+            episode = self._recipe.episode(episode_seed)
         robots = {agent_name(robot): robot for robot in episode.layers}
         if list(robots) != self.possible_agents:
             episode.close()
@@ -371,24 +359,6 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
 
     # -- internals --------------------------------------------------------------------------
 
-    def _build(self, seed: int) -> Episode:
-        scenario = _revalidated(
-            self._base,
-            [
-                (f"layers.{self._level}", self._class_path),
-                ("run.seed", seed),
-                ("run.virtual", True),
-                ("run.transport", "memory"),
-            ],
-        )
-        if scenario.layers.get(self._level) is not self._layer_class:
-            raise ConfigurationError(
-                f"layer: importing {self._class_path} gives another class than "
-                f"{self._layer_class!r}: define the policy layer once, in a module that "
-                "imports by that path"
-            )
-        return Episode(scenario, self._index)
-
     def _stop_episode(self) -> None:
         episode, self._episode = self._episode, None
         self.agents = []
@@ -434,85 +404,9 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         return {"robot": self._robots[agent], "time": t, "decisions": decisions}
 
     def _world(self) -> tuple[float, float]:
-        world = self._base.world
+        world = self._recipe.scenario.world
         return (world.width, world.height)
 
     def _title(self) -> str:
         seed = self.run.result.seed
-        return f"{self._base.app.name}, seed {seed}: t = {self.time:g} s"
-
-
-def agent_name(robot: RobotId) -> str:
-    """The agent a robot is (``3``: ``"robot_3"``)."""
-    return f"robot_{robot}"
-
-
-def _revalidated(base: Scenario, overrides: Sequence[tuple[str, Any]]) -> Scenario:
-    """``base`` with ``overrides`` applied to its data, validated again as the loader does."""
-    return scenario_from_data(base.path, apply_overrides(base.data, overrides))
-
-
-def _level_of(scenario: Scenario, level: str | int) -> tuple[int, str]:
-    """``(index, name)`` of the stack's level that ``level`` names.
-
-    Raises:
-        ConfigurationError: the app names no levels, or none is ``level``.
-    """
-    stack = tuple(getattr(scenario.app, "stack", None) or ())
-    names = [slot.name for slot in stack]
-    if not names:
-        raise ConfigurationError(
-            f"level: {scenario.app.name} declares no stack (a LayerSlot per level): "
-            "no level can be learned"
-        )
-    levels = ", ".join(f"{name} ({index})" for index, name in enumerate(names))
-    if isinstance(level, bool) or not isinstance(level, int | str):
-        raise ConfigurationError(f"level: expected a level's name or index, got {level!r}")
-    if isinstance(level, int):
-        if not 0 <= level < len(names):
-            raise ConfigurationError(f"level: no level {level}; the stack's levels are {levels}")
-        return level, names[level]
-    if level not in names:
-        raise ConfigurationError(
-            f"level: no level named {level!r}; the stack's levels are {levels}"
-        )
-    return names.index(level), level
-
-
-def _policy_class(
-    scenario: Scenario, level: str, layer: type[PolicyLayer] | None
-) -> type[PolicyLayer]:
-    """The policy layer's class: ``layer``, or the one the scenario's ``[layers]`` names.
-
-    Raises:
-        ConfigurationError: ``layer`` is not a PolicyLayer subclass, or (``None``) the
-            scenario names no PolicyLayer for ``level``.
-    """
-    if layer is None:
-        named = scenario.layers.get(level)
-        if named is None or not issubclass(named, PolicyLayer):
-            built = "the app's own class" if named is None else named.__qualname__
-            raise ConfigurationError(
-                f"layer: the scenario puts {built} at level {level}, not a PolicyLayer: "
-                "pass layer=YourPolicyLayer, or name one in the scenario's [layers]"
-            )
-        return named
-    if not (isinstance(layer, type) and issubclass(layer, PolicyLayer)):
-        raise ConfigurationError(
-            f"layer: expected a subclass of cas_async.rl.PolicyLayer, got {layer!r}"
-        )
-    return layer
-
-
-def _class_path(layer: type[PolicyLayer]) -> str:
-    """The ``[layers]`` value that names ``layer``.
-
-    Raises:
-        ConfigurationError: ``layer`` is defined inside a function (no path reaches it).
-    """
-    if "<" in layer.__qualname__:
-        raise ConfigurationError(
-            f"layer: {layer.__qualname__} is defined inside a function; the scenario's "
-            "[layers] imports it by path: define it at module level"
-        )
-    return f"{layer.__module__}:{layer.__qualname__}"
+        return f"{self._recipe.scenario.app.name}, seed {seed}: t = {self.time:g} s"
