@@ -48,7 +48,7 @@ class LearnedStrategy(PolicyLayer, TimeStrategy):
 
     def choose(self, view: SearchView) -> list[int]:
         """The robots to ask, in order: what ``act`` makes of the action held now."""
-        ranked = tuple(super().choose(view))
+        ranked = tuple(super().choose(view))  # soonest estimated delivery first
         at = {candidate.robot: candidate.at for candidate in view.candidates}
         times = tuple(self._estimate(view, at[robot], robot == view.sink) for robot in ranked)
         alone = (
@@ -57,8 +57,8 @@ class LearnedStrategy(PolicyLayer, TimeStrategy):
             else solo_time(view.here, view.carrying, view.sink_at)
         )
         choice = Choice(view, ranked, times, alone)
-        self.last_choice = choice
-        return list(self.decide(choice))
+        self.last_choice = choice  # what observe() reads
+        return list(self.decide(choice))  # act(layer, action, choice)
 
     @staticmethod
     def _estimate(view: SearchView, at: tuple[float, float], is_sink: bool) -> float:

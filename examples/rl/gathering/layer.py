@@ -39,7 +39,7 @@ class LearnedPlan(PolicyLayer, Plan):
     async def on_action(self) -> None:
         """Drives the leg the action names, from where the robot stands (or stays)."""
         self.step_start = self.here
-        target: Point = self.decide(self.here)
+        target: Point = self.decide(self.here)  # act: where this step's leg ends
         if target == self.here:
             return
         arrived = await self.request_down(DriveTo(*target), reply=Arrived, timeout=math.inf)

@@ -191,7 +191,7 @@ def _evaluate_into(
         print(f"after {episode} episodes: evaluation return {score:.2f}", file=sys.stderr)
 
 
-def plot(training: Training, random_return: float, path: Path) -> Path:
+def plot(training: Training, random_return: float, seeds: int, path: Path) -> Path:
     """The learning curve: training returns, evaluations, and the random policy's level."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -207,8 +207,8 @@ def plot(training: Training, random_return: float, path: Path) -> Path:
         axes.plot(episodes[window - 1 :], smooth, color="C0", label=f"mean of {window}")
     if training.evaluations:
         xs, ys = zip(*training.evaluations, strict=True)
-        axes.plot(xs, ys, "o-", color="C1", label="evaluation (10 seeds)")
-    axes.axhline(random_return, color="C3", linestyle="--", label="random policy (10 seeds)")
+        axes.plot(xs, ys, "o-", color="C1", label=f"evaluation ({seeds} seeds)")
+    axes.axhline(random_return, color="C3", linestyle="--", label=f"random policy ({seeds} seeds)")
     axes.set_xlabel("training episodes")
     axes.set_ylabel("return per robot")
     axes.set_title("REINFORCE on the gathering (5 robots, learned Plan layer)")
@@ -226,18 +226,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=300, help="training episodes")
     parser.add_argument("--eval-every", type=int, default=25, help="episodes between evaluations")
     parser.add_argument("--seed", type=int, default=0, help="seeds the policy's sampling")
+    parser.add_argument(
+        "--eval-episodes", type=int, default=len(EVAL_SEEDS), help="seeds 1000, ... to evaluate on"
+    )
     parser.add_argument("--out", type=Path, default=Path("runs/rl-gathering"))
     args = parser.parse_args(argv)
+    seeds = range(EVAL_SEEDS.start, EVAL_SEEDS.start + args.eval_episodes)
     started = time.perf_counter()
-    random = random_baseline()
+    random = random_baseline(seeds)
     random_return = statistics.mean(r.mean_return for r in random)
-    training = train(args.episodes, seed=args.seed, eval_every=args.eval_every, log=True)
+    training = train(
+        args.episodes, seed=args.seed, eval_every=args.eval_every, eval_seeds=seeds, log=True
+    )
     with make_env() as env:
-        trained = evaluate(env, training.policy, EVAL_SEEDS)
+        trained = evaluate(env, training.policy, seeds)
         training.policy.greedy = True
-        greedy = evaluate(env, training.policy, EVAL_SEEDS)
+        greedy = evaluate(env, training.policy, seeds)
     wall = time.perf_counter() - started
-    figure = plot(training, random_return, args.out / "learning_curve.png")
+    figure = plot(training, random_return, len(seeds), args.out / "learning_curve.png")
     record = {
         "episodes": args.episodes,
         "env_steps": training.steps,
