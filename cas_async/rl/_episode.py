@@ -25,7 +25,7 @@ from ..scenario._loader import Scenario
 from ..scenario._results import RunResult, RunStatus
 from ..scenario._runner import ScenarioRun
 from ..sim._environment import Environment
-from ._loop import SteppingLoop
+from ._loop import SteppingLoop, off_running_loop
 from ._policy import ACTION_TIMER, PolicyLayer, acts_every_step
 
 __all__ = ["Episode", "EpisodeFailed", "StepOutcome"]
@@ -135,7 +135,7 @@ class Episode:
         elif self._stepped:
             loop.call_soon(self._wake, start)
         driver = self._driver
-        loop.run_until(end, driver)
+        off_running_loop(lambda: loop.run_until(end, driver))
         if not driver.done():
             return None
         return self._end(driver)
@@ -172,7 +172,7 @@ class Episode:
         try:
             if driver is not None and not driver.done():
                 self._loop.call_soon(self._run.interrupt)
-                self._loop.run_until(math.inf, driver)
+                off_running_loop(lambda: self._loop.run_until(math.inf, driver))
                 self._result = driver.result()
         finally:
             self.close()
@@ -183,9 +183,13 @@ class Episode:
             return
         self._closed = True
         loop = self._loop
-        try:
+
+        def finish() -> None:
             _cancel(asyncio.all_tasks(loop), loop)
             loop.run_until_complete(loop.shutdown_asyncgens())
+
+        try:
+            off_running_loop(finish)
         finally:
             loop.close()
 

@@ -13,6 +13,10 @@ made, with the same arithmetic, so an episode stepped in pieces runs exactly as
 the same run in one piece (same timers, same order, same instants to the last
 bit). The clock stays at the last instant something happened: the step's end is
 the caller's to know.
+
+:func:`off_running_loop` runs such a call where it can run: in the caller's thread,
+or, when an event loop already runs there (a notebook's), in a thread of its own
+while the caller waits (asyncio runs one loop per thread at a time).
 """
 
 from __future__ import annotations
@@ -20,11 +24,15 @@ from __future__ import annotations
 import asyncio
 import math
 import selectors
-from typing import Any, final
+import threading
+from collections.abc import Callable
+from typing import Any, TypeVar, final
 
 from .._virtual_loop import VirtualTimeLoop
 
-__all__ = ["SteppingLoop"]
+__all__ = ["SteppingLoop", "off_running_loop"]
+
+T = TypeVar("T")
 
 
 @final
@@ -79,3 +87,32 @@ class SteppingLoop(VirtualTimeLoop):
 
 def _stop_loop(future: asyncio.Future[Any]) -> None:
     future.get_loop().stop()
+
+
+def off_running_loop(call: Callable[[], T]) -> T:
+    """``call()``, in this thread, or in another one while an event loop runs in this one.
+
+    A synchronous caller inside a running loop (a Jupyter cell, an ``async def``
+    that calls the env) cannot run a second loop in its thread; the call then runs
+    in a short-lived thread, and this one waits for it (its own loop is blocked
+    meanwhile, as it would be by any synchronous call).
+    """
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:
+        return call()
+    outcome: list[T] = []
+    failure: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            outcome.append(call())
+        except BaseException as error:  # handed to the caller's thread, raised there
+            failure.append(error)
+
+    worker = threading.Thread(target=run, name="cas_async.rl episode")
+    worker.start()
+    worker.join()
+    if failure:
+        raise failure[0]
+    return outcome[0]

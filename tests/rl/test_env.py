@@ -343,3 +343,15 @@ def test_render_draws_the_latest_trace_sample(make: Callable[..., Any]) -> None:
     plain.reset(seed=1)
     with pytest.raises(RuntimeError, match="render_mode='rgb_array'"):
         plain.render()
+
+
+async def test_the_env_works_where_an_event_loop_already_runs(make: Callable[..., Any]) -> None:
+    """A notebook's cell runs inside the kernel's loop: the env runs its own beside it."""
+    env = env_with(make)
+    observations, _ = env.reset(seed=1)
+    while env.agents:
+        observations, _, terminations, _, _ = env.step(greedy(observations))
+    assert all(terminations.values())
+    env.reset(seed=2)
+    env.step(dict.fromkeys(env.agents, np.int64(0)))
+    env.close()  # a live episode stopped from inside the running loop too
