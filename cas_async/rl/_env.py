@@ -150,6 +150,16 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         """The action space of ``agent``: the one given, the same object every time."""
         return self._action_space
 
+    @property
+    def observation_spaces(self) -> dict[str, Space[O]]:
+        """Every possible agent's observation space (for tools that read the dict)."""
+        return dict.fromkeys(self.possible_agents, self._observation_space)
+
+    @property
+    def action_spaces(self) -> dict[str, Space[A]]:
+        """Every possible agent's action space (for tools that read the dict)."""
+        return dict.fromkeys(self.possible_agents, self._action_space)
+
     # -- episodes ---------------------------------------------------------------------------
 
     def reset(

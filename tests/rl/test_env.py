@@ -319,6 +319,8 @@ def test_the_spaces_are_the_ones_given_and_the_same_object_every_call(
     for agent in env.possible_agents:
         assert env.observation_space(agent) is OBSERVATIONS
         assert env.action_space(agent) is ACTIONS
+        assert env.observation_spaces[agent] is OBSERVATIONS
+        assert env.action_spaces[agent] is ACTIONS
     assert env.possible_agents == [f"robot_{k}" for k in range(1, 6)]
     assert env.robot_id("robot_4") == 4
     with pytest.raises(KeyError, match="robot_7"):
