@@ -22,10 +22,11 @@ wall time, the median of ``--runs`` runs (seeds 0, 1, ...).
 
 Then one more run under ``cProfile`` splits the steps' time by where the code
 lives: the runtime (``cas_async``, with ``cas_async.rl`` shown apart as ``env``,
-and asyncio's event loop), the app (``apps/`` and ``examples/``: the layers, and
-the env's ``observe``, ``reward`` and ``act``), and this driver. Time in builtins
-and third-party code (numpy, gymnasium) counts for whoever called it. The
-profiler slows every call down alike, so the split is a share, not a time.
+and asyncio's event loop), the app (``apps/`` and ``examples/``: its layers, the
+learned one included), the environment's callbacks (``observe``, ``reward`` and
+``act``, in ``examples/rl/*/env.py``) and this driver. Time in builtins and
+third-party code (numpy, gymnasium) counts for whoever called it. The profiler
+slows every call down alike, so the split is a share, not a time.
 
 One table and exactly one JSON line per case on stdout; progress goes to stderr.
 """
@@ -51,7 +52,9 @@ ROOT: Final = Path(__file__).resolve().parent.parent
 SCALE: Final = ROOT / "apps" / "fire_brigade" / "scenarios" / "scale_25.toml"
 ENVS: Final = ("gathering", "fire_brigade")
 COUNTS: Final = (25, 100, 1000)
-CATEGORIES: Final = ("runtime", "env", "app", "driver", "other")
+CATEGORIES: Final = ("runtime", "env", "app", "callbacks", "driver", "other")
+CALLBACKS: Final = tuple(str(ROOT / "examples" / "rl" / name / "env.py") for name in ENVS)
+"""Where the environments' observe, reward and act live."""
 
 
 def make(env: str, robots: int) -> Any:
@@ -158,6 +161,8 @@ def category(filename: str) -> str | None:
         return "env"
     if "/cas_async/" in path or "/asyncio/" in path or path.endswith("/selectors.py"):
         return "runtime"
+    if path in CALLBACKS:
+        return "callbacks"
     if str(ROOT / "apps") in path or str(ROOT / "examples") in path:
         return "app"
     if str(ROOT / "benchmarks") in path:
@@ -197,9 +202,8 @@ def case(env_name: str, robots: int, steps: int, runs: int, profile: bool) -> di
 
 
 def print_table(rows: Sequence[dict[str, Any]]) -> None:
-    lines = [
-        ("env", "robots", "reset s", "1st step s", "steps/s", "runtime", "(env)", "app", "driver")
-    ]
+    header = "env robots reset_s 1st_step_s steps/s runtime (env) app callbacks driver"
+    lines = [tuple(name.replace("_", " ") for name in header.split())]
     for row in rows:
         share = row.get("share")
 
@@ -210,7 +214,7 @@ def print_table(rows: Sequence[dict[str, Any]]) -> None:
         lines.append((
             row["env"], str(row["robots"]), f"{row['reset_s']:.3f}", f"{row['first_step_s']:.3f}",
             f"{row['steps_per_s']:.1f}", "-" if runtime is None else f"{runtime:.0%}",
-            pct("env"), pct("app"), pct("driver"),
+            pct("env"), pct("app"), pct("callbacks"), pct("driver"),
         ))  # fmt: skip
     print_aligned(lines, left=(0,))
 

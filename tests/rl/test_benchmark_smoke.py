@@ -54,9 +54,10 @@ def test_a_short_benchmark_run_prints_a_table_and_one_json_line_per_case() -> No
             assert isinstance(row.get(name), kind), f"{name}: {row.get(name)!r} is not a {kind}"
         assert row["steps_per_s"] > 0
         share = row["share"]
-        assert set(share) == {"runtime", "env", "app", "driver", "other"}
+        assert set(share) == {"runtime", "env", "app", "callbacks", "driver", "other"}
         assert sum(share.values()) == pytest.approx(1.0, abs=0.01)
         assert share["runtime"] > 0.2
         assert share["env"] > 0
         assert share["app"] > 0
+        assert share["callbacks"] > 0
     assert lines[0].split()[:3] == ["env", "robots", "reset"]

@@ -6,8 +6,9 @@ degrees counter-clockwise), or stay (8). A leg ends just before the step does, s
 every robot stands still when the step's observation is taken.
 
 * Observation (4 floats in [-1, 1]): the unit vector from the robot to the meeting
-  point it knows (the centroid of the starts it heard), the distance to it over the
-  world's diagonal, and 1 when it stands within the gathering radius (else 0).
+  point it knows (the centroid of the starts it heard, its own included: before the
+  robots start, its own start), the distance to it over the world's diagonal, and 1
+  when it stands within the gathering radius (else 0).
 * Reward: the distance gained toward the meeting point during the step, in legs
   (1 for a full leg straight at it), less 0.1 per step (waiting costs), plus 5 for
   every robot when the last one gathers (the episode terminates): the sooner the
@@ -80,8 +81,6 @@ class Gathering:
     def observe(self, layer: LearnedPlan) -> Observation:
         """Heading to the meeting point, how far it is, whether the robot is there."""
         meeting = layer.meeting
-        if meeting is None:  # not started yet: it knows nothing
-            return np.zeros(4, dtype=np.float32)
         dx, dy = meeting[0] - layer.here[0], meeting[1] - layer.here[1]
         gap = math.hypot(dx, dy)
         ux, uy = (dx / gap, dy / gap) if gap > 0 else (0.0, 0.0)
@@ -93,8 +92,6 @@ class Gathering:
     def reward(self, layer: LearnedPlan, outcome: StepOutcome) -> float:
         """Distance gained in legs, less 0.1 a step, plus 5 at completion."""
         meeting = layer.meeting
-        if meeting is None:
-            return 0.0
         pose = outcome.environment.pose_at(layer.robot_id, outcome.time)
         before = math.dist(layer.step_start, meeting)
         after = math.dist((pose.x, pose.y), meeting)

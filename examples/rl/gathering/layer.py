@@ -46,10 +46,10 @@ class LearnedPlan(PolicyLayer, Plan):
         self.here = (arrived.x, arrived.y)
 
     @property
-    def meeting(self) -> Point | None:
-        """The centroid of the positions heard so far (``None`` before the robot started)."""
+    def meeting(self) -> Point:
+        """The centroid of the starts heard, its own included (before it starts: its own)."""
         if not self.heard:
-            return None
+            return self.home
         if self._meeting is None or self._meeting[0] != len(self.heard):  # heard more since
             self._meeting = (len(self.heard), centroid(self.heard.values()))
         return self._meeting[1]
