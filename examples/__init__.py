@@ -1,0 +1,3 @@
+"""Examples of cas_async: each folder (or file) is one, with a README where it has several parts."""
+
+__all__: list[str] = []
