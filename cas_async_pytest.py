@@ -26,6 +26,37 @@ if TYPE_CHECKING:
 MARKER: Final = "cas_virtual"
 DROPS_MARKER: Final = "cas_allow_drops"
 _DEFAULT_FACTORY: Final = "asyncio"
+_FIXTURE_LOOP_SCOPE: Final = "asyncio_default_fixture_loop_scope"
+
+
+def pytest_addoption(parser: pytest.Parser, pluginmanager: pytest.PytestPluginManager) -> None:
+    """Keeps the parser, to give pytest-asyncio's fixture loop scope a default at configure time."""
+    pluginmanager.register(_FixtureLoopScope(parser), _FixtureLoopScope.__name__)
+
+
+class _FixtureLoopScope:
+    """Gives ``asyncio_default_fixture_loop_scope`` the default ``"function"`` (see the module).
+
+    pytest-asyncio declares the option without a default, and warns when a project
+    leaves it unset. Declaring it again, with a default, before any plugin has read
+    it (this runs first among the ``pytest_configure`` hooks; the plugins have all
+    declared their options by then) changes what an unset option reads as, and
+    nothing else: a value from the project's configuration or from ``-o`` wins.
+    """
+
+    def __init__(self, parser: pytest.Parser) -> None:
+        self._parser = parser
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_configure(self, config: pytest.Config) -> None:
+        if config.pluginmanager.hasplugin("asyncio"):  # pytest-asyncio, by its entry point
+            self._parser.addini(
+                _FIXTURE_LOOP_SCOPE,
+                "default scope of the asyncio event loop used to execute async fixtures "
+                "(default here, from the cas_async plugin: function)",
+                type="string",
+                default="function",
+            )
 
 
 def pytest_configure(config: pytest.Config) -> None:
