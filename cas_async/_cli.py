@@ -23,8 +23,11 @@ abandoned, the workers killed; what finished is written (the files, not the
 box plots) and its table printed. A file is always written whole or not at all.
 
 Exit codes: 0 the mission completed (``sweep``: every run did); 1 it failed or ran
-out of simulated time (``sweep``: some run did); 2 the command line or the
-scenario is wrong; 130 interrupted.
+out of simulated time (``sweep``: some run did); 2 the command line, the scenario
+or the set-up is wrong: anything refused before the robots run, on one line
+``error: ...`` (the app's build refusing, ``--processes`` without the zenoh extra
+or with an objective that cannot run across processes, a start refused by a
+transport or a clock); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -56,11 +59,13 @@ from .scenario import (
     run_sweep,
     sweep_table,
 )
+from .scenario._atomic_files import remove_partial_files
 from .scenario._barrier import BarrierLoop
 from .scenario._distributed import World, run_worker
-from .scenario._report import remove_partial_files, summary_table, write_results
+from .scenario._report import summary_table, write_results
 from .scenario._sweep_plots import write_box_plots
 from .scenario._sweep_report import write_sweep_files
+from .transport._zenoh import import_zenoh
 
 __all__ = ["main"]
 
@@ -293,6 +298,9 @@ def _command_run(
         with interrupts.deferred():
             abandon_build()
         return EXIT_INTERRUPTED
+    except ConfigurationError as exc:  # the app's build, --processes, the layers built
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
     session = _Session(
         scenario_run, scenario, out, (stdout, stderr), interrupts, owns_process, not args.no_plots
     )
@@ -303,6 +311,9 @@ def _command_run(
                     runner.run(session.drive(stop))
             else:
                 run(session.drive(stop), virtual=scenario.run.virtual)
+        if session.refused is not None:
+            print(f"error: {session.refused}", file=stderr)
+            return EXIT_USAGE
         return session.finish()
 
 
@@ -311,6 +322,12 @@ def _world(args: argparse.Namespace, scenario: Scenario, key: SwarmKey | None) -
     if args.command == "world":
         return World(scenario, workers=args.workers, key=key, listen=args.listen, spawn=False)
     if getattr(args, "processes", None):
+        try:
+            import_zenoh()
+        except ConfigurationError as exc:
+            raise ConfigurationError(
+                f"--processes runs the robots in worker processes that talk over Zenoh: {exc}"
+            ) from None
         return World(scenario, workers=args.processes, key=key)
     return None
 
@@ -398,6 +415,8 @@ class _Session:
         self._stop: asyncio.Event | None = None
         self._written: list[Path] = []
         self._failure_shown = False  # a traceback printed with the summary
+        self.refused: ConfigurationError | None = None
+        """Why the robots could not start, if a configuration error stopped them."""
 
     def request_stop(self) -> None:
         """A signal while the loop runs (called from the signal handler).
@@ -418,7 +437,12 @@ class _Session:
         self._loop, self._stop = asyncio.get_running_loop(), stop
         if self._interrupts.interrupted:
             stop.set()
-        async with self._run:
+        async with contextlib.AsyncExitStack() as stack:
+            try:
+                await stack.enter_async_context(self._run)
+            except ConfigurationError as exc:  # refused while starting: nothing ran
+                self.refused = exc
+                return
             self._ended(await self._run.until_done())
             if self._interrupts.interrupted and self._owns_process:
                 self._exit_now()

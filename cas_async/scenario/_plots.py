@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 import numpy.typing as npt
 
-from ._report import atomic_binary_file
+from ._atomic_files import atomic_binary_file
 from ._trace import Trace
 
 if TYPE_CHECKING:

@@ -42,7 +42,7 @@ from ._gc_policy import young_generation_for
 from ._layers import check_built
 from ._loader import Scenario
 from ._measure import mark_failed, measure_end, measure_positions
-from ._objective import CallbackWatch, Items, Objective
+from ._objective import CallbackWatch, Items, Objective, not_distributable
 from ._progress import Progress
 from ._results import RunResult, RunStatus
 from ._trace import Trace, TraceCsv
@@ -155,11 +155,7 @@ class ScenarioRun:
             raise ConfigurationError(f"{scenario.path}: {error}") from None
         self._objective = objective = _objective_of(mission, scenario)
         if world is not None and not objective.distributable:
-            raise ConfigurationError(
-                f"{scenario.path}: {scenario.app.name}'s mission ({type(objective).__name__}) "
-                "keeps its state in each process: it cannot run across processes "
-                "(run it without --processes)"
-            )
+            raise ConfigurationError(not_distributable(scenario.path, scenario.app.name, objective))
         self._progress = None
         if progress_to is not None:
             self._progress = Progress(
