@@ -48,6 +48,7 @@ from ._interrupts import EXIT_INTERRUPTED, Interrupted, Interrupts
 from ._runner import run
 from ._swarm_key import SwarmKey
 from .scenario import (
+    FailOnDrops,
     RunResult,
     RunStatus,
     Scenario,
@@ -126,6 +127,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     runner.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     runner.add_argument(
+        "--fail-on-drops",
+        nargs="?",
+        const=FailOnDrops(),
+        type=_drop_reasons,
+        metavar="REASON,...",
+        help="the run fails (exit 1) if its robots dropped messages for these reasons "
+        "(decode: every decode.* reason), or for any reason when none is given",
+    )
+    runner.add_argument(
         "--key-file",
         type=Path,
         metavar="FILE",
@@ -158,6 +168,8 @@ def _parser() -> argparse.ArgumentParser:
     world.add_argument("--virtual", action="store_true", help="virtual time, shared by barrier")
     world.add_argument("--out", type=Path, metavar="DIR", help="where to write")
     world.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    world.add_argument("--fail-on-drops", nargs="?", const=FailOnDrops(), type=_drop_reasons,
+                       metavar="REASON,...", help="fail the run on these drops")  # fmt: skip
     world.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        dest="overrides", help="override a scenario key")  # fmt: skip
     worker = commands.add_parser(
@@ -204,6 +216,13 @@ def _at_least_one(text: str) -> int:
     if number < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
     return number
+
+
+def _drop_reasons(text: str) -> FailOnDrops:
+    try:
+        return FailOnDrops.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _overrides(args: argparse.Namespace) -> list[str]:
@@ -304,6 +323,7 @@ def _command_run(
     session = _Session(
         scenario_run, scenario, out, (stdout, stderr), interrupts, owns_process, not args.no_plots
     )
+    session.fail_on_drops = args.fail_on_drops
     with session.leaving_at_once():
         with interrupts.calling(session.request_stop):
             if world is not None and scenario.run.virtual:
@@ -417,6 +437,8 @@ class _Session:
         self._failure_shown = False  # a traceback printed with the summary
         self.refused: ConfigurationError | None = None
         """Why the robots could not start, if a configuration error stopped them."""
+        self.fail_on_drops: FailOnDrops | None = None
+        """The drops that fail the run (``--fail-on-drops``), if any do."""
 
     def request_stop(self) -> None:
         """A signal while the loop runs (called from the signal handler).
@@ -462,6 +484,8 @@ class _Session:
             # look at them again (a full collection of 10,000 robots takes a second,
             # and the interpreter's exit seconds).
             gc.freeze()
+        if self.fail_on_drops is not None:
+            self.fail_on_drops.judge(result)
         with self._interrupts.deferred():
             self._written = [write_results(result, self._out)]
             if self._run.trace_csv is not None:  # written as the run went

@@ -9,7 +9,8 @@
 * :mod:`.objective`: what a mission is for (:class:`Objective`): its end, progress,
   checks and results; :class:`Items` retires items of the Environment's ledger.
 * :mod:`.runner`: one run as a coroutine, or step by step (:class:`ScenarioRun`);
-  :mod:`.results`: what it measured.
+  :mod:`.results`: what it measured; :mod:`.drop_policy`: drops that fail a run
+  (:class:`FailOnDrops`).
 * :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
   the summary table and results.json, PNG figures, the live progress line.
 * :mod:`.sweep`: a scenario over a grid of values and seeds in worker processes
@@ -19,6 +20,7 @@
 
 from ._app import LayerSlot, Measure, Mission, SimulationApp, SimulationSetup
 from ._config import ScenarioError, from_toml, setting
+from ._drop_policy import FailOnDrops
 from ._loader import (
     FaultsConfig,
     RunConfig,
@@ -41,6 +43,7 @@ from ._sweep_results import MetricStats, SweepOutcome, SweepRun
 from ._trace import Trace, TraceCsv
 
 __all__ = [
+    "FailOnDrops",
     "FaultsConfig",
     "Items",
     "LayerSlot",

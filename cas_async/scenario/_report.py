@@ -19,6 +19,12 @@ robots' positions (one number each, over time, by exchange count), and
 ``faults`` is ``null`` unless the scenario has a ``[faults]`` table; then it holds
 the fault counts (``sent``, ``lost``, ...) and the table gets a ``faults`` line.
 
+``fail_on_drops`` is ``null`` unless the run was asked to fail on drops
+(``run --fail-on-drops``); then it lists the reasons (empty: any), and
+``failing_drops`` the drops by reason that failed it. ``unanswered`` counts the
+internal requests still waiting when the run ended that their asked layer had not
+answered (``get_intra_msg_reply`` returned ``None``), by who asked what of whom.
+
 That is a mission of items (``kind`` ``"items"``, the Fire Brigade's). A mission with
 an objective of its own has no item fields (``created``, ``exchanges``,
 ``travel_times``, ``handovers_per_item`` and their statistics); it has ``kind``,
@@ -168,6 +174,9 @@ def _common_data(result: RunResult) -> dict[str, Any]:
         "messages_internal": dict(sorted(result.messages_internal.items())),
         "messages_external": dict(sorted(result.messages_external.items())),
         "protocol_errors": dict(sorted(result.protocol_errors.items())),
+        "fail_on_drops": None if result.fail_on_drops is None else list(result.fail_on_drops),
+        "failing_drops": dict(result.failing_drops),
+        "unanswered": dict(result.unanswered),
         "faults": None if result.faults is None else dict(result.faults),
         "groups": {label: list(ids) for label, ids in result.groups.items()},
         "extra": dict(result.extra),
@@ -246,6 +255,16 @@ def summary_table(result: RunResult) -> str:
     rows.append(("messages internal", _counts_parts(result.messages_internal, total=True), ""))
     rows.append(("messages external", _counts_parts(result.messages_external, total=True), ""))
     rows.append(("messages dropped", _counts_parts(result.protocol_errors, total=False), ""))
+    if result.fail_on_drops is not None:
+        rows.append(_fail_on_drops_row(result))
+    if result.unanswered:
+        rows.append(
+            (
+                "unanswered requests",
+                _counts_parts(result.unanswered, total=False),
+                "(get_intra_msg_reply returned None, and no reply followed)",
+            )
+        )
     if result.faults is not None:
         rows.append(("faults", _faults_parts(result.faults), ""))
     if result.groups:
@@ -295,6 +314,15 @@ def _objective_rows(result: RunResult) -> list[_Row]:
             (name.replace("_", " "), _stats_text(stats, ("mean", "median", "max"), _decimal), "")
         )
     return rows
+
+
+def _fail_on_drops_row(result: RunResult) -> _Row:
+    """What ``--fail-on-drops`` asked, and whether the run's drops failed it."""
+    reasons = ", ".join(result.fail_on_drops or ()) or "any reason"
+    if not result.failing_drops:
+        return ("fail on drops", reasons, "(none dropped: passed)")
+    total = sum(result.failing_drops.values())
+    return ("fail on drops", reasons, f"({total:,} dropped: the run failed)")
 
 
 def _render(rows: Sequence[_Row]) -> list[str]:

@@ -69,6 +69,14 @@ class RunResult:
         samples: an objective's own values per thing done (``"time_per_object"``):
             summarised with :func:`~cas_async.scenario.statistics` in the table and
             results.json.
+        fail_on_drops: the drop reasons that fail the run (``run --fail-on-drops``;
+            empty: any reason), ``None`` when drops fail nothing (the default).
+        failing_drops: the drops, by reason, that failed the run (or would have:
+            a run that failed for something else keeps its error).
+        unanswered: internal requests still unanswered when the run ended, whose
+            asked layer's ``get_intra_msg_reply`` had returned ``None``: how many,
+            by ``"robot layer asked Request of layer"`` (see
+            :meth:`~cas_async.Swarm.unanswered_requests`).
     """
 
     scenario: str
@@ -103,6 +111,9 @@ class RunResult:
     verb: str = "delivered"
     detail: str = "exchanges"
     samples: dict[str, list[float]] = field(default_factory=dict)
+    fail_on_drops: list[str] | None = None
+    failing_drops: dict[str, int] = field(default_factory=dict)
+    unanswered: dict[str, int] = field(default_factory=dict)
 
     def scalars(self) -> dict[str, float]:
         """The run's figures as numbers, one per name: what a sweep tabulates.
