@@ -332,6 +332,9 @@ def _render(rows: Sequence[_Row]) -> list[str]:
     for label, value, note in rows:
         if isinstance(value, list):
             wrapped = _wrap(value, _LINE_WIDTH - width)
+            if note:  # after the last part, or on a line of its own
+                fits = len(wrapped[-1]) + 2 + len(note) <= _LINE_WIDTH - width
+                wrapped = [*wrapped[:-1], f"{wrapped[-1]}  {note}"] if fits else [*wrapped, note]
             lines.append(f"{label:<{width}}{wrapped[0]}".rstrip())
             lines.extend(" " * width + line for line in wrapped[1:])
         elif note:
