@@ -45,6 +45,7 @@ from typing import Final, NoReturn, TextIO, final
 
 from ._errors import ConfigurationError
 from ._interrupts import EXIT_INTERRUPTED, Interrupted, Interrupts
+from ._pipes import PipeGuard
 from ._runner import run
 from ._swarm_key import SwarmKey
 from .scenario import (
@@ -598,8 +599,9 @@ def main(
             stopping its robots one by one, and the collector leaves the run's
             objects alone from the end of the run on.
     """
-    stdout = stdout or sys.stdout
-    stderr = stderr or sys.stderr
+    # A reader that goes away (| head) leaves the run to finish quietly: see _pipes.
+    stdout = PipeGuard.around(stdout or sys.stdout)
+    stderr = PipeGuard.around(stderr or sys.stderr)
     interrupts = Interrupts()
     try:
         interrupts.install()
