@@ -317,6 +317,8 @@ class ScenarioRun:
             self.environment,
             self._clock.now(),
         )
+        if status is RunStatus.COMPLETED and result.makespan is not None:
+            self._sample_last(result.makespan)  # the trace ends where the mission did
         measure_positions(result, self._mission, self.trace)
         if self._world is not None:
             result.extra.update(self._world.stats())
@@ -369,6 +371,12 @@ class ScenarioRun:
             self._progress.update(t, done, detail)
         if self._trace_csv is not None:
             self._trace_csv.write_until(t)  # what came before this sample is final
+
+    def _sample_last(self, t: float) -> None:
+        """A last regular sample at ``t``, unless one was taken there (or later)."""
+        times = self.trace.times
+        if not len(times) or times[-1] < t:
+            self.trace.sample(t, self.environment.positions_at(t).xy, self._carrying())
 
     def _carrying(self) -> npt.NDArray[np.bool_]:
         """Which robots of the trace carry something now, in the trace's row order."""
