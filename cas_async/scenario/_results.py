@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from statistics import fmean
 from typing import Any
 
-__all__ = ["RunResult", "RunStatus"]
+__all__ = ["RunProgress", "RunResult", "RunStatus"]
 
 
 class RunStatus(enum.StrEnum):
@@ -146,3 +146,33 @@ class RunResult:
             if isinstance(value, int | float) and not isinstance(value, bool):
                 figures.setdefault(name, float(value))
         return figures
+
+
+@dataclass(frozen=True, slots=True)
+class RunProgress:
+    """Where a run stands: what its progress line shows, as numbers.
+
+    Attributes:
+        time: simulated seconds since the robots started (0 before).
+        done: how many of the target are done (buckets delivered, objects moved).
+        target: how many must be done for the mission to be complete (0 until the
+            robots are built).
+        detail: the progress line's second count (exchanges, for an item mission).
+        status: how the run ended; ``None`` while it has not.
+    """
+
+    time: float = 0.0
+    done: int = 0
+    target: int = 0
+    detail: int = 0
+    status: RunStatus | None = None
+
+    @property
+    def fraction(self) -> float:
+        """``done / target``, between 0 and 1 (0 while the target is not known)."""
+        return min(1.0, self.done / self.target) if self.target > 0 else 0.0
+
+    @property
+    def ended(self) -> bool:
+        """Whether the run has ended (its :attr:`status` is known)."""
+        return self.status is not None
