@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import asyncio
 import inspect
-from collections.abc import AsyncIterator, Callable, Iterator, Mapping
+import sys
+from collections.abc import AsyncIterator, Callable, Generator, Iterator, Mapping
 from typing import TYPE_CHECKING, Any, Final
 
 import pytest
@@ -26,6 +27,37 @@ if TYPE_CHECKING:
 MARKER: Final = "cas_virtual"
 DROPS_MARKER: Final = "cas_allow_drops"
 _DEFAULT_FACTORY: Final = "asyncio"
+_FIXTURE_LOOP_SCOPE: Final = "asyncio_default_fixture_loop_scope"
+
+
+def pytest_addoption(parser: pytest.Parser, pluginmanager: pytest.PytestPluginManager) -> None:
+    """Keeps the parser, to give pytest-asyncio's fixture loop scope a default at configure time."""
+    pluginmanager.register(_FixtureLoopScope(parser), _FixtureLoopScope.__name__)
+
+
+class _FixtureLoopScope:
+    """Gives ``asyncio_default_fixture_loop_scope`` the default ``"function"`` (see the module).
+
+    pytest-asyncio declares the option without a default, and warns when a project
+    leaves it unset. Declaring it again, with a default, before any plugin has read
+    it (this runs first among the ``pytest_configure`` hooks; the plugins have all
+    declared their options by then) changes what an unset option reads as, and
+    nothing else: a value from the project's configuration or from ``-o`` wins.
+    """
+
+    def __init__(self, parser: pytest.Parser) -> None:
+        self._parser = parser
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_configure(self, config: pytest.Config) -> None:
+        if config.pluginmanager.hasplugin("asyncio"):  # pytest-asyncio, by its entry point
+            self._parser.addini(
+                _FIXTURE_LOOP_SCOPE,
+                "default scope of the asyncio event loop used to execute async fixtures "
+                "(default here, from the cas_async plugin: function)",
+                type="string",
+                default="function",
+            )
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -59,6 +91,59 @@ class _LoopFactories:
         # Nobody else answers, and pytest-asyncio requires an answer once anyone
         # implements the hook: the loop it would make without any (the policy's).
         return {_DEFAULT_FACTORY: asyncio.new_event_loop}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collectreport(report: pytest.CollectReport) -> None:
+    """A test module that could not import cas_async because a folder shadows it: says so."""
+    if report.failed:
+        _explain_shadow(report)
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(
+    item: pytest.Item, call: pytest.CallInfo[None]
+) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+    """A test that failed because a folder shadows cas_async (see :func:`_explain_shadow`)."""
+    report = yield
+    if report.failed:
+        _explain_shadow(report)
+    return report
+
+
+def _explain_shadow(report: pytest.CollectReport | pytest.TestReport) -> None:
+    """Adds what happened, and what to do, to a failure when ``cas_async`` is no package.
+
+    Run from the folder that contains a clone of the repository, ``import cas_async``
+    finds the clone's folder, which has no ``__init__.py``: an empty namespace package
+    (see ``cas_async._shadow``). Looked at only when something failed, and without
+    importing cas_async.
+    """
+    import importlib.util
+
+    module = sys.modules.get("cas_async")
+    try:
+        spec = module.__spec__ if module is not None else importlib.util.find_spec("cas_async")
+    except (ImportError, ValueError):
+        return
+    if spec is None or spec.origin is not None or not spec.submodule_search_locations:
+        return  # a package, or not there at all
+    folder = next(iter(spec.submodule_search_locations))
+    text = (
+        f"cas_async is the folder {folder}, not the package: that folder has no "
+        "__init__.py (a clone of the repository, seen from the folder that contains it), so "
+        "Python imported it as an empty namespace package. Run pytest from inside the clone, "
+        "or from any folder but the one that contains it, or install the package without -e."
+    )
+    longrepr = report.longrepr
+    if isinstance(longrepr, pytest.ExceptionInfo) or longrepr is None:
+        return
+    if isinstance(longrepr, tuple):  # (path, line, message): a skip's
+        return
+    if hasattr(longrepr, "addsection"):  # a traceback's representation
+        longrepr.addsection("cas_async is shadowed", text)
+    else:  # a collection error's text
+        report.longrepr = f"{longrepr}\n\n{text}"
 
 
 @pytest.hookimpl(wrapper=True, tryfirst=True)

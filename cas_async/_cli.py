@@ -23,8 +23,11 @@ abandoned, the workers killed; what finished is written (the files, not the
 box plots) and its table printed. A file is always written whole or not at all.
 
 Exit codes: 0 the mission completed (``sweep``: every run did); 1 it failed or ran
-out of simulated time (``sweep``: some run did); 2 the command line or the
-scenario is wrong; 130 interrupted.
+out of simulated time (``sweep``: some run did); 2 the command line, the scenario
+or the set-up is wrong: anything refused before the robots run, on one line
+``error: ...`` (the app's build refusing, ``--processes`` without the zenoh extra
+or with an objective that cannot run across processes, a start refused by a
+transport or a clock); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -42,9 +45,11 @@ from typing import Final, NoReturn, TextIO, final
 
 from ._errors import ConfigurationError
 from ._interrupts import EXIT_INTERRUPTED, Interrupted, Interrupts
+from ._pipes import PipeGuard
 from ._runner import run
 from ._swarm_key import SwarmKey
 from .scenario import (
+    FailOnDrops,
     RunResult,
     RunStatus,
     Scenario,
@@ -56,11 +61,13 @@ from .scenario import (
     run_sweep,
     sweep_table,
 )
+from .scenario._atomic_files import remove_partial_files
 from .scenario._barrier import BarrierLoop
 from .scenario._distributed import World, run_worker
-from .scenario._report import remove_partial_files, summary_table, write_results
+from .scenario._report import summary_table, write_results
 from .scenario._sweep_plots import write_box_plots
 from .scenario._sweep_report import write_sweep_files
+from .transport._zenoh import import_zenoh
 
 __all__ = ["main"]
 
@@ -121,6 +128,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     runner.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     runner.add_argument(
+        "--fail-on-drops",
+        nargs="?",
+        const=FailOnDrops(),
+        type=_drop_reasons,
+        metavar="REASON,...",
+        help="the run fails (exit 1) if its robots dropped messages for these reasons "
+        "(decode: every decode.* reason), or for any reason when none is given",
+    )
+    runner.add_argument(
         "--key-file",
         type=Path,
         metavar="FILE",
@@ -153,6 +169,8 @@ def _parser() -> argparse.ArgumentParser:
     world.add_argument("--virtual", action="store_true", help="virtual time, shared by barrier")
     world.add_argument("--out", type=Path, metavar="DIR", help="where to write")
     world.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    world.add_argument("--fail-on-drops", nargs="?", const=FailOnDrops(), type=_drop_reasons,
+                       metavar="REASON,...", help="fail the run on these drops")  # fmt: skip
     world.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        dest="overrides", help="override a scenario key")  # fmt: skip
     worker = commands.add_parser(
@@ -199,6 +217,13 @@ def _at_least_one(text: str) -> int:
     if number < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
     return number
+
+
+def _drop_reasons(text: str) -> FailOnDrops:
+    try:
+        return FailOnDrops.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _overrides(args: argparse.Namespace) -> list[str]:
@@ -293,9 +318,13 @@ def _command_run(
         with interrupts.deferred():
             abandon_build()
         return EXIT_INTERRUPTED
+    except ConfigurationError as exc:  # the app's build, --processes, the layers built
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
     session = _Session(
         scenario_run, scenario, out, (stdout, stderr), interrupts, owns_process, not args.no_plots
     )
+    session.fail_on_drops = args.fail_on_drops
     with session.leaving_at_once():
         with interrupts.calling(session.request_stop):
             if world is not None and scenario.run.virtual:
@@ -303,6 +332,9 @@ def _command_run(
                     runner.run(session.drive(stop))
             else:
                 run(session.drive(stop), virtual=scenario.run.virtual)
+        if session.refused is not None:
+            print(f"error: {session.refused}", file=stderr)
+            return EXIT_USAGE
         return session.finish()
 
 
@@ -311,6 +343,12 @@ def _world(args: argparse.Namespace, scenario: Scenario, key: SwarmKey | None) -
     if args.command == "world":
         return World(scenario, workers=args.workers, key=key, listen=args.listen, spawn=False)
     if getattr(args, "processes", None):
+        try:
+            import_zenoh()
+        except ConfigurationError as exc:
+            raise ConfigurationError(
+                f"--processes runs the robots in worker processes that talk over Zenoh: {exc}"
+            ) from None
         return World(scenario, workers=args.processes, key=key)
     return None
 
@@ -398,6 +436,10 @@ class _Session:
         self._stop: asyncio.Event | None = None
         self._written: list[Path] = []
         self._failure_shown = False  # a traceback printed with the summary
+        self.refused: ConfigurationError | None = None
+        """Why the robots could not start, if a configuration error stopped them."""
+        self.fail_on_drops: FailOnDrops | None = None
+        """The drops that fail the run (``--fail-on-drops``), if any do."""
 
     def request_stop(self) -> None:
         """A signal while the loop runs (called from the signal handler).
@@ -418,7 +460,12 @@ class _Session:
         self._loop, self._stop = asyncio.get_running_loop(), stop
         if self._interrupts.interrupted:
             stop.set()
-        async with self._run:
+        async with contextlib.AsyncExitStack() as stack:
+            try:
+                await stack.enter_async_context(self._run)
+            except ConfigurationError as exc:  # refused while starting: nothing ran
+                self.refused = exc
+                return
             self._ended(await self._run.until_done())
             if self._interrupts.interrupted and self._owns_process:
                 self._exit_now()
@@ -438,6 +485,8 @@ class _Session:
             # look at them again (a full collection of 10,000 robots takes a second,
             # and the interpreter's exit seconds).
             gc.freeze()
+        if self.fail_on_drops is not None:
+            self.fail_on_drops.judge(result)
         with self._interrupts.deferred():
             self._written = [write_results(result, self._out)]
             if self._run.trace_csv is not None:  # written as the run went
@@ -550,8 +599,9 @@ def main(
             stopping its robots one by one, and the collector leaves the run's
             objects alone from the end of the run on.
     """
-    stdout = stdout or sys.stdout
-    stderr = stderr or sys.stderr
+    # A reader that goes away (| head) leaves the run to finish quietly: see _pipes.
+    stdout = PipeGuard.around(stdout or sys.stdout)
+    stderr = PipeGuard.around(stderr or sys.stderr)
     interrupts = Interrupts()
     try:
         interrupts.install()

@@ -22,6 +22,7 @@ Virtual time needs no pad: the loop jumps to each timer's instant exactly.
 from __future__ import annotations
 
 import asyncio
+import os
 import time
 from abc import ABC, abstractmethod
 from typing import Final, final
@@ -31,6 +32,8 @@ from ._virtual_loop import VirtualTimeLoop
 
 __all__ = ["Clock", "ScaledClock", "VirtualClock"]
 
+_IN_PYTEST_TEST: Final = "PYTEST_CURRENT_TEST"
+"""The variable pytest sets while a test runs: the error names the marker there."""
 _MILLISECOND_ROUNDING: Final = 0.0005 + 1e-6
 """Loop seconds a millisecond-rounding loop (uvloop) may run a timer early, and a hair."""
 
@@ -300,10 +303,17 @@ class VirtualClock(Clock):
     def check_loop(self, loop: asyncio.AbstractEventLoop) -> None:
         """Refuses loops whose clock is real."""
         if not isinstance(loop, VirtualTimeLoop):
+            running = type(loop).__name__
+            if _IN_PYTEST_TEST in os.environ:  # pytest sets it while a test runs
+                raise ConfigurationError(
+                    "VirtualClock needs the virtual-time event loop: mark the test "
+                    "@pytest.mark.cas_virtual (the cas_async pytest plugin then runs it on "
+                    f"that loop), or use ScaledClock; this test runs on {running}"
+                )
             raise ConfigurationError(
                 f"VirtualClock needs the virtual-time event loop, but this loop is "
-                f"{type(loop).__name__}: run with cas_async.run(main(), virtual=True) "
-                "or use ScaledClock"
+                f"{running}: run with cas_async.run(main(), virtual=True) "
+                "(in a pytest test: mark it @pytest.mark.cas_virtual) or use ScaledClock"
             )
 
     def __repr__(self) -> str:

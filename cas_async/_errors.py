@@ -6,7 +6,7 @@ Hierarchy::
     ├── ConfigurationError        a robot, clock or transport was set up wrongly
     ├── RobotStateError           an operation does not fit the robot's lifecycle
     ├── UnknownRobotError         (also LookupError) no address for a robot id
-    ├── MessageDefinitionError    (also TypeError) a @message class is not valid
+    ├── MessageDefinitionError    (also TypeError) a message class is not valid
     ├── EncodeError               (also ValueError) a message cannot be encoded
     ├── DecodeError               (also ValueError) bytes are not a valid datagram
     │   └── StackMismatchError    valid bytes from a robot with a different stack

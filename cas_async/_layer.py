@@ -121,7 +121,14 @@ class Layer:
         """An internal ACCEPT or DENY message whose destination is this layer."""
 
     async def get_intra_msg_reply(self, msg: Message) -> Message | None:
-        """The automatic reply to an internal NEGOTIATION (``None``: no reply)."""
+        """The automatic reply to an internal NEGOTIATION (``None``: no reply now).
+
+        With ``None`` the asking layer goes on waiting, until this layer answers
+        with :meth:`reply` or its request times out (never, with ``math.inf``).
+        Such a request is noted: :meth:`~cas_async.Robot.unanswered_requests` lists it while it
+        waits, the asker logs a warning once it has waited ten times its
+        ``default_request_timeout``, and a scenario run reports it when it ends.
+        """
         return None
 
     def get_msg_reply(self, msg: Message) -> Message | None:

@@ -127,6 +127,9 @@ class LayerRuntime:
         self.counters = LayerCounters()
         self.inbox: Channel[Message] = Channel(queue_limit)
         self.requests = PendingRequests(log.prefix.rstrip(": "), drops.drop)
+        self.requests.watch_declined(
+            layer.default_request_timeout, self.clock.loop_deadline, log.warning
+        )
         self.timers = Timers(self.clock, self.inbox.nudge)
         self.overrides = overrides
         self.on_batch = on_batch
@@ -474,6 +477,9 @@ class LayerRuntime:
                         response = await layer.get_intra_msg_reply(msg)
                         if response is not None:
                             self.reply_internal(msg, response)
+                        else:  # not answered (yet): the asker notes it (the rare path)
+                            asked = f"{self.name}(L{self.level})"
+                            self.stack[msg.src_layer].requests.declined(msg, asked)
                     else:
                         await layer.store_intra_msg(msg)
                 if flow.congested is not None:

@@ -7,6 +7,14 @@ reply must come from where the request went: the asked robot for an external
 request (same level), this robot's own layers for an internal one. Anything else
 that claims to answer a request (a stray, late or repeated reply) is dropped and
 counted; it never reaches a hook or a waiting caller.
+
+An internal request that its layer does not answer (``get_intra_msg_reply``
+returned ``None``) may be answered later with ``reply()``, or never: the asker
+then waits until its timeout, forever with ``math.inf``. Such a request is noted
+(:meth:`PendingRequests.declined`, off the hot path: only when no answer came),
+logged once if it still waits :data:`OVERDUE` times the asker's default timeout
+later, and listed by :meth:`PendingRequests.unanswered` (a run reports them when
+it ends).
 """
 
 from __future__ import annotations
@@ -22,7 +30,7 @@ from ._errors import RequestTimeout, RobotStateError, UnexpectedReply
 from ._message import Message
 from ._types import RobotId
 
-__all__ = ["PendingRequests", "ReplyOutcome", "check_reply"]
+__all__ = ["OVERDUE", "PendingRequests", "ReplyOutcome", "check_reply"]
 
 _MEMORY: Final = 256
 """Timed-out and answered request ids remembered per layer, to drop late or repeated replies.
@@ -30,6 +38,12 @@ _MEMORY: Final = 256
 Repeated external replies are already refused by the robot's duplicate check (by
 message id), so these only name what reaches a layer anyway; a small memory
 keeps a busy layer's footprint flat."""
+
+
+OVERDUE: Final = 10.0
+"""A declined internal request is logged once it has waited this many default timeouts."""
+_DECLINED_SLACK: Final = 64
+"""Notes of declined requests kept before those no longer waiting are swept out."""
 
 
 class ReplyOutcome(enum.Enum):
@@ -82,15 +96,32 @@ class PendingRequests:
         drop: counts (and logs) a refused reply: ``drop(reason, template, *args)``.
     """
 
-    __slots__ = ("_answered", "_deadlines", "_drop", "_expired", "_owner", "_waiting")
+    __slots__ = (
+        "_answered",
+        "_deadlines",
+        "_declined",
+        "_drop",
+        "_expired",
+        "_loop_deadline",
+        "_owner",
+        "_patience",
+        "_waiting",
+        "_warn",
+    )
 
     def __init__(self, owner: str, drop: Callable[..., None]) -> None:
         self._owner = owner
         self._drop = drop
+        self._patience = math.inf
+        self._loop_deadline: Callable[[float], float] | None = None
+        self._warn: Callable[..., None] | None = None
         self._waiting: dict[int, _Waiter] = {}
         self._expired: dict[int, None] = {}  # insertion-ordered sets of recent ids
         self._answered: dict[int, None] = {}
         self._deadlines: Deadlines | None = None
+        # Internal requests their layer did not answer at once: msg_id -> (the asked
+        # layer, the warning's timer). Only get_intra_msg_reply returning None adds.
+        self._declined: dict[int, tuple[str, asyncio.TimerHandle | None]] | None = None
 
     def expect(
         self,
@@ -162,6 +193,93 @@ class PendingRequests:
             )
         )
 
+    def watch_declined(
+        self,
+        patience: float,
+        loop_deadline: Callable[[float], float],
+        warn: Callable[..., None],
+    ) -> None:
+        """Logs a declined request (see :meth:`declined`) that waits too long.
+
+        Args:
+            patience: the layer's default request timeout, simulated seconds: a
+                declined request is logged once it has waited :data:`OVERDUE`
+                times that (never, when it is ``inf``).
+            loop_deadline: the loop time a timer in some simulated seconds is armed
+                for (the clock's ``loop_deadline``).
+            warn: logs the warning (a logger's ``warning``).
+        """
+        self._patience = patience
+        self._loop_deadline = loop_deadline
+        self._warn = warn
+
+    def declined(self, request: Message, asked: str) -> None:
+        """The asked layer gave no answer to ``request`` (``get_intra_msg_reply`` returned None).
+
+        If this layer still waits for it, the request is noted: :meth:`unanswered`
+        lists it while it waits, and it is logged once if it still waits
+        ``OVERDUE * patience`` simulated seconds from now.
+
+        Args:
+            request: the internal request, as it reached the asked layer.
+            asked: how to name the asked layer (``"Drive(L1)"``).
+        """
+        msg_id = request.msg_id
+        waiter = self._waiting.get(msg_id)
+        if waiter is None or waiter.future.done():
+            return  # answered meanwhile, or asked without waiting (a NEGOTIATION sent)
+        declined = self._declined
+        if declined is None:
+            declined = self._declined = {}
+        elif len(declined) >= _DECLINED_SLACK:
+            self._sweep_declined()
+        after = OVERDUE * self._patience
+        timer = None
+        if after < math.inf and self._loop_deadline is not None and self._deadlines is not None:
+            when = self._loop_deadline(after)
+            timer = self._deadlines.loop.call_at(when, self._overdue, msg_id, after)
+        declined[msg_id] = (asked, timer)
+
+    def _overdue(self, msg_id: int, after: float) -> None:
+        waiter = self._waiting.get(msg_id)
+        declined, warn = self._declined, self._warn
+        if waiter is None or waiter.future.done() or declined is None or warn is None:
+            return
+        if msg_id not in declined:
+            return
+        asked, _ = declined[msg_id]
+        asked_class = asked.partition("(")[0]
+        warn(
+            "%s has waited %g s for the reply from %s: %s.get_intra_msg_reply returned None "
+            "and no reply() followed (it waits up to its timeout, %g s)",
+            type(waiter.request).__name__ + f" #{msg_id}",
+            after,
+            asked,
+            asked_class,
+            waiter.seconds,
+        )
+
+    def _sweep_declined(self) -> None:
+        """Forgets the notes of requests no longer waiting, and disarms their timers."""
+        declined, waiting = self._declined, self._waiting
+        if declined is None:
+            return
+        for msg_id in [i for i in declined if i not in waiting or waiting[i].future.done()]:
+            _, timer = declined.pop(msg_id)
+            if timer is not None:
+                timer.cancel()
+
+    def unanswered(self) -> list[tuple[str, str]]:
+        """The declined internal requests still waiting: ``(request class, asked layer)`` each."""
+        self._sweep_declined()
+        if not self._declined:
+            return []
+        waiting = self._waiting
+        return [
+            (type(waiting[msg_id].request).__name__, asked)
+            for msg_id, (asked, _) in self._declined.items()
+        ]
+
     def fail_peer(self, peer: RobotId, error: Callable[[str], Exception]) -> None:
         """Fails every external request waiting on robot ``peer`` (it left) with ``error(what)``."""
         for msg_id, waiter in list(self._waiting.items()):
@@ -173,6 +291,11 @@ class PendingRequests:
         """The robot stopped: disarms the timer and fails every request still waiting."""
         if self._deadlines is not None:
             self._deadlines.cancel()
+        if self._declined is not None:
+            for _, timer in self._declined.values():
+                if timer is not None:
+                    timer.cancel()
+            self._declined = None
         for waiter in self._waiting.values():
             if not waiter.future.done():
                 waiter.future.set_exception(

@@ -207,6 +207,21 @@ class Robot:
             runtime.counters.add_by_name(internal, external)
         return {"internal": internal, "external": external}
 
+    def unanswered_requests(self) -> dict[str, int]:
+        """Internal requests waiting now that their asked layer did not answer, by who asked what.
+
+        A layer's ``get_intra_msg_reply`` that returns ``None`` leaves the asker
+        waiting until a ``reply()`` comes or its timeout ends (never, with
+        ``math.inf``). Those still waiting are counted here, as ``{"Plan(L0) asked
+        Drive(L1) for GoTo": 2}``: the scenario runner reports them when a run ends.
+        """
+        counts: dict[str, int] = {}
+        for runtime in self._runtimes:
+            for request, asked in runtime.requests.unanswered():
+                key = f"{runtime.name}(L{runtime.level}) asked {asked} for {request}"
+                counts[key] = counts.get(key, 0) + 1
+        return counts
+
     def inbox_sizes(self) -> tuple[int, ...]:
         """Messages waiting in each layer's inbox, top first: how far each layer is behind."""
         return tuple(len(runtime.inbox) for runtime in self._runtimes)

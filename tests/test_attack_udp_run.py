@@ -93,6 +93,8 @@ from cas_async.testing import peer_process
 from cas_async.transport import Codec
 from tests.wire import datagram
 
+pytestmark = pytest.mark.slow  # whole runs over UDP under attack
+
 SCENARIO: Final = (
     Path(__file__).resolve().parents[1] / "apps/fire_brigade/scenarios/thesis_5_8_2.toml"
 )

@@ -25,6 +25,8 @@ from typing import Any, Final
 
 import pytest
 
+pytestmark = pytest.mark.slow  # every test runs the command line in a subprocess (1-3 s each)
+
 ROOT: Final = Path(__file__).resolve().parents[1]
 SCENARIOS: Final = ROOT / "apps" / "fire_brigade" / "scenarios"
 SHIPPED: Final = SCENARIOS / "thesis_5_8_1.toml"

@@ -73,13 +73,15 @@ def simulate(seed: int, swarm: int = 10) -> list[tuple[float, int, str]]:
     return trace
 
 
-def test_a_thousand_simulated_seconds_take_well_under_a_second() -> None:
+def test_a_thousand_simulated_seconds_do_not_wait_for_real_time() -> None:
     started = time.perf_counter()
     trace = simulate(seed=1)
     wall = time.perf_counter() - started
     assert trace[-1][0] >= SIM_SECONDS - 3.0
     assert len(trace) > 3000  # ten robots, one message per ~1.75 s each
-    assert wall < 1.0, f"{SIM_SECONDS} simulated seconds took {wall:.2f} s of wall time"
+    # Not a speed test (about 0.1 s here, more on a loaded machine): real time would
+    # have taken SIM_SECONDS; virtual time takes only what the CPU needs.
+    assert wall < SIM_SECONDS / 10, f"{SIM_SECONDS} simulated seconds took {wall:.2f} s"
 
 
 def test_same_seed_gives_identical_traces_and_another_seed_does_not() -> None:
@@ -103,7 +105,7 @@ def test_virtual_sleep_and_timeouts_follow_virtual_time() -> None:
 
     started = time.perf_counter()
     assert cas_async.run(main(), virtual=True) == (3600.0, 7200.5, 7300.5)
-    assert time.perf_counter() - started < 1.0
+    assert time.perf_counter() - started < 60.0  # two hours were never waited for
 
 
 def test_request_timeout_runs_on_the_robot_clock() -> None:

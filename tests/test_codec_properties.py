@@ -489,6 +489,7 @@ def check_decoded(data: bytes, msg: Message) -> None:
     assert not refused or "nest too deeply" in refused
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     data=st.one_of(
@@ -503,6 +504,7 @@ def test_random_and_mutated_bytes_only_raise_decode_error(data: bytes) -> None:
     decode_or_decode_error(data)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=random_bodies())
 def test_random_fields_under_a_valid_header_only_raise_decode_error(data: bytes) -> None:
@@ -522,6 +524,7 @@ AIMED: dict[type[Message], st.SearchStrategy[bytes]] = {
 }
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), cls=st.sampled_from(list(AIMED)))
 def test_any_value_in_a_field_only_raises_decode_error(

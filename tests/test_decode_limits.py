@@ -380,12 +380,14 @@ SLOW = settings(
 )
 
 
+@pytest.mark.slow
 @SLOW
 @given(hostile_datagrams())
 def test_hostile_structures_only_raise_decode_error_within_the_bound(data: bytes) -> None:
     check_bounded(data)
 
 
+@pytest.mark.slow
 @SLOW
 @given(random_datagrams())
 def test_random_bytes_only_raise_decode_error_within_the_bound(data: bytes) -> None:

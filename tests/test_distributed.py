@@ -26,6 +26,8 @@ from typing import Any, Final
 
 import pytest
 
+pytestmark = pytest.mark.slow  # world and worker processes on Zenoh
+
 pytest.importorskip("zenoh")
 
 

@@ -223,6 +223,7 @@ def logs_are_short(caplog: pytest.LogCaptureFixture) -> None:
 UDP_TOTAL: Final = 100_000
 
 
+@pytest.mark.slow
 async def test_mission_completes_under_100k_hostile_datagrams_over_udp(
     caplog: pytest.LogCaptureFixture,
 ) -> None:

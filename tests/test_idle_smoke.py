@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from cas_async import uvloop_available
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -32,6 +34,7 @@ FIELDS = {
 }
 
 
+@pytest.mark.slow
 def test_a_short_idle_run_prints_one_json_line_per_loop() -> None:
     transport = "udp"  # the default, and the one with a socket per robot
     command = [sys.executable, "-m", "benchmarks.idle", "--robots", "20", "--seconds", "0.5"]

@@ -37,6 +37,8 @@ from examples.operational.messages import MESSAGES
 from examples.operational.network import NAMESPACE
 from examples.operational.simulated import build_swarm, circle
 
+pytestmark = pytest.mark.slow  # a robot in another process
+
 ROOT = Path(__file__).resolve().parent.parent
 TIME_FACTOR = 10.0  # simulated seconds per wall second, in both processes
 CHILD = 10

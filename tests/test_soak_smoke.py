@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 
 FIELDS = {
@@ -28,6 +30,7 @@ FIELDS = {
 }
 
 
+@pytest.mark.slow
 def test_a_short_soak_prints_one_json_line() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "benchmarks.soak", "--robots", "20", "--seconds", "1"],

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
-from cas_async import ConstantSpeed, Layer, Pose, Robot
+from cas_async import ConstantSpeed, Layer, Pose
 from cas_async.scenario import LayerSlot, Mission, ScenarioError, SimulationSetup
 from cas_async.sim import SimulatedMiddleware
 
@@ -165,16 +165,7 @@ class BoxMoving:
                 coordination(params),
                 action(params, middleware, FloorGripper(floor, robot_id, setup.clock)),
             ]
-            robots.append(
-                Robot(
-                    robot_id,
-                    layers,
-                    transport=setup.transport,
-                    clock=setup.clock,
-                    messages=MESSAGES,
-                    restart=setup.restart,
-                )
-            )
+            robots.append(setup.robot(robot_id, layers, messages=MESSAGES))
         coordination_rule = f"{coordination.__module__}.{coordination.__qualname__}"
         return Mission(
             robots,

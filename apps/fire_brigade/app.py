@@ -11,7 +11,7 @@ import math
 from collections.abc import Sequence
 from typing import Any, Final
 
-from cas_async import Layer, Message, Pose, Robot
+from cas_async import Layer, Message, Pose
 from cas_async.scenario import LayerSlot, Mission, ScenarioError, SimulationSetup
 from cas_async.sim import SimulatedHands, SimulatedMiddleware
 
@@ -209,16 +209,7 @@ class FireBrigade:
                 task(params),
                 action(params, middleware, hands),
             ]
-            robots.append(
-                Robot(
-                    robot_id,
-                    layers,
-                    transport=setup.transport,
-                    clock=setup.clock,
-                    messages=MESSAGES,
-                    restart=setup.restart,
-                )
-            )
+            robots.append(setup.robot(robot_id, layers, messages=MESSAGES))
             groups[kind.name.title()].append(robot_id)
         generators = stations.placed(stations.generators)
         sinks = stations.placed(stations.sinks)

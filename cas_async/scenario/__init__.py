@@ -8,8 +8,11 @@
   the levels of its stack a scenario may replace (:class:`LayerSlot`).
 * :mod:`.objective`: what a mission is for (:class:`Objective`): its end, progress,
   checks and results; :class:`Items` retires items of the Environment's ledger.
-* :mod:`.runner`: one run as a coroutine, or step by step (:class:`ScenarioRun`);
-  :mod:`.results`: what it measured.
+* :mod:`.runner`: one run as a coroutine, or step by step (:class:`ScenarioRun`:
+  ``now()`` and ``progress()`` say where it stands); :mod:`.background`: a run on
+  a loop of its own in a worker thread, for an asyncio service (:class:`BackgroundRun`);
+  :mod:`.results`: what it measured; :mod:`.drop_policy`: drops that fail a run
+  (:class:`FailOnDrops`).
 * :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
   the summary table and results.json, PNG figures, the live progress line.
 * :mod:`.sweep`: a scenario over a grid of values and seeds in worker processes
@@ -18,7 +21,9 @@
 """
 
 from ._app import LayerSlot, Measure, Mission, SimulationApp, SimulationSetup
+from ._background import BackgroundRun
 from ._config import ScenarioError, from_toml, setting
+from ._drop_policy import FailOnDrops
 from ._loader import (
     FaultsConfig,
     RunConfig,
@@ -32,8 +37,9 @@ from ._objective import Items, Objective, Tally, Watch
 from ._plots import write_plots
 from ._progress import Progress
 from ._report import results_dict, statistics, summary_table, write_results
-from ._results import RunResult, RunStatus
-from ._runner import ScenarioRun, check_key, run_scenario
+from ._results import RunProgress, RunResult, RunStatus
+from ._run_transport import check_key
+from ._runner import ScenarioRun, run_scenario
 from ._sweep import run_sweep, sweep
 from ._sweep_grid import SweepAxis, SweepPlan, parse_vary, plan_sweep
 from ._sweep_report import sweep_table
@@ -41,6 +47,8 @@ from ._sweep_results import MetricStats, SweepOutcome, SweepRun
 from ._trace import Trace, TraceCsv
 
 __all__ = [
+    "BackgroundRun",
+    "FailOnDrops",
     "FaultsConfig",
     "Items",
     "LayerSlot",
@@ -50,6 +58,7 @@ __all__ = [
     "Objective",
     "Progress",
     "RunConfig",
+    "RunProgress",
     "RunResult",
     "RunStatus",
     "Scenario",

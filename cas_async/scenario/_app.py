@@ -22,22 +22,34 @@ with ``setup.layer(SLOT)``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Generic, Protocol, TypeAlias, TypeVar, cast
+from typing import Final, Generic, Protocol, TypeAlias, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
 
+from .._channel import DEFAULT_QUEUE_LIMIT
 from .._clock import Clock
+from .._codec import DEFAULT_MAX_DATAGRAM
 from .._layer import Layer
+from .._message import Message
 from .._robot import Robot
 from .._supervision import RestartPolicy
+from .._types import RobotId
 from ..sim._environment import Environment
 from ..transport._base import Transport
 from ._objective import Objective
 
-__all__ = ["LayerSlot", "Measure", "Mission", "SimulationApp", "SimulationSetup"]
+__all__ = [
+    "APP_MEMBERS",
+    "LayerSlot",
+    "Measure",
+    "Mission",
+    "SimulationApp",
+    "SimulationSetup",
+    "app_problems",
+]
 
 Measure: TypeAlias = Callable[[Sequence[int], npt.NDArray[np.float64]], float]
 """A number the application reads off the robots' positions: ``measure(ids, xy)``.
@@ -116,6 +128,36 @@ class SimulationSetup(Generic[C]):
             return cast(type[L], chosen)  # the loader checked it subclasses slot.base
         return slot.default if default is None else default
 
+    def robot(
+        self,
+        robot_id: RobotId,
+        layers: Sequence[Layer],
+        *,
+        messages: Iterable[type[Message]] | None = None,
+        max_datagram_size: int = DEFAULT_MAX_DATAGRAM,
+        queue_limit: int = DEFAULT_QUEUE_LIMIT,
+        reply_memory: float = 60.0,
+    ) -> Robot:
+        """A :class:`~cas_async.Robot` on this run's transport and clock, with its restart policy.
+
+        ``setup.robot(7, layers, messages=MESSAGES)`` is
+        ``Robot(7, layers, transport=setup.transport, clock=setup.clock,
+        messages=MESSAGES, restart=setup.restart)``; the other arguments are
+        :class:`~cas_async.Robot`'s. Add the robot to :attr:`environment` as well
+        (``environment.add_robot(robot_id, pose)``): where it stands is the app's.
+        """
+        return Robot(
+            robot_id,
+            layers,
+            transport=self.transport,
+            clock=self.clock,
+            messages=messages,
+            max_datagram_size=max_datagram_size,
+            queue_limit=queue_limit,
+            restart=self.restart,
+            reply_memory=reply_memory,
+        )
+
 
 @dataclass(slots=True)
 class Mission:
@@ -161,22 +203,30 @@ class Mission:
 
 
 class SimulationApp(Protocol[C]):
-    """An application the scenario runner can run (see the module docs).
+    """What a scenario's ``app = "package.module"`` names: an application the runner can run.
+
+    The loader imports the module and takes its ``app`` (or the attribute after a
+    colon, ``"package.module:my_app"``). It must have the five members below; a
+    missing one is reported as ``app "package.module" lacks robots(config): ...``
+    before anything runs. Annotating it, ``app: SimulationApp[MyConfig] = MyApp()``,
+    has mypy check the contract.
+
+    Three more attributes are read when present (:data:`APP_MEMBERS` lists all eight):
+
+    * ``item_name: str``: what the items of a ``Mission(robots, target)`` are,
+      singular (``"bucket"``; default ``"item"``);
+    * ``stack: Sequence[LayerSlot]``: every level of the robots' stack, top first,
+      so that a scenario's ``[layers]`` may replace any of them (the robots must
+      have exactly these levels; build each with ``setup.layer(SLOT)``);
+    * ``messages: Sequence[type[Message]]``: the stack's message classes (needed
+      with ``stack``): a replacement layer may not add to them.
 
     Attributes:
-        name: shown in the summary, e.g. ``"Fire Brigade"``.
-        config_type: a frozen dataclass: the scenario file's keys other than
-            ``app``, ``run``, ``world``, ``faults`` and ``layers`` are validated into it.
-
-    Optional attributes, read when present:
-
-    * ``item_name``: what its items are, singular (``"bucket"``), for a mission
-      given as a ``target`` (default ``"item"``);
-    * ``stack``: every level of the robots' stack, top first, one
-      :class:`LayerSlot` each, so that a scenario's ``[layers]`` may replace any
-      of them (the robots must have exactly these levels);
-    * ``messages``: the stack's message classes (needed with ``stack``): a
-      replacement layer may not add to them.
+        name: shown in the summary and results, e.g. ``"Fire Brigade"``.
+        config_type: a dataclass (frozen, keys declared with
+            :func:`~cas_async.scenario.setting`): the scenario file's keys other than
+            ``app``, ``run``, ``world``, ``faults`` and ``layers`` are validated into
+            it, and the other members get an instance of it.
     """
 
     name: str
@@ -188,15 +238,70 @@ class SimulationApp(Protocol[C]):
         Computed without building anything: the loader checks the total against
         the machine's memory (and sockets, on UDP) before :meth:`check` and
         :meth:`build` run, and names the key with the most robots when it is too
-        many. ``{"transporters.count": 16, "stations": 4}``, say.
+        many (``count = 1000000000000`` fails at once instead of filling memory).
+        ``{"transporters.count": 16, "stations": 4}``, say.
         """
 
     def check(self, config: C, world: tuple[float, float]) -> None:
         """Checks what needs several keys at once (robots inside the world, …).
 
+        Each key's own type and bounds are checked already (from ``config_type``);
+        an app with nothing more to check does nothing here.
+
         Raises:
-            ScenarioError: naming the key at fault.
+            ScenarioError: naming the key at fault: ``ScenarioError([(key, problem)])``.
         """
 
     def build(self, setup: SimulationSetup[C]) -> Mission:
         """Creates the robots, adds them to ``setup.environment``, returns the mission."""
+
+
+APP_MEMBERS: Final[Mapping[str, tuple[bool, str]]] = {
+    "name": (True, "name: str, the app's name in the summary"),
+    "config_type": (
+        True,
+        "config_type: the dataclass the scenario's own keys are validated into",
+    ),
+    "robots": (
+        True,
+        "robots(config) -> Mapping[str, int]: how many robots a configuration builds, by "
+        "the key that sets each number, so that the loader checks this machine holds them "
+        "before anything is built",
+    ),
+    "check": (
+        True,
+        "check(config, world) -> None: checks across keys, raising "
+        "ScenarioError([(key, problem)]) (an app with nothing to check returns None)",
+    ),
+    "build": (
+        True,
+        "build(setup: SimulationSetup) -> Mission: builds the robots, adds them to "
+        "setup.environment and says what the mission is for",
+    ),
+    "item_name": (False, "item_name: str, what a target's items are (default 'item')"),
+    "stack": (False, "stack: Sequence[LayerSlot], the stack's levels, top first"),
+    "messages": (False, "messages: Sequence[type[Message]], the stack's message classes"),
+}
+"""Every member of :class:`SimulationApp`, by name: ``(required, what it is)``."""
+
+_CALLED: Final = frozenset({"robots", "check", "build"})
+
+
+def app_problems(app: object) -> list[str]:
+    """What ``app`` lacks to be a :class:`SimulationApp`, one text per member.
+
+    A required member that is missing (``"lacks robots(config) -> Mapping[str, int]:
+    how many robots ..."``), a method that is not callable, a ``name`` or
+    ``item_name`` that is not text. Empty when nothing is wrong.
+    """
+    problems: list[str] = []
+    for member, (required, what) in APP_MEMBERS.items():
+        value = getattr(app, member, None)
+        if value is None:
+            if required:
+                problems.append(f"lacks {what}")
+        elif member in _CALLED and not callable(value):
+            problems.append(f"has {member} = {value!r}, which is not a method; expected {what}")
+        elif member in ("name", "item_name") and not isinstance(value, str):
+            problems.append(f"has {member} = {value!r}, which is not text; expected {what}")
+    return problems

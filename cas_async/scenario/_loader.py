@@ -43,15 +43,12 @@ top), by class paths (``"package.module.Class"`` or ``"package.module:Class"``);
 from __future__ import annotations
 
 import copy
-import dataclasses
-import importlib
 import os
-import re
 import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final, Literal, cast
+from typing import Any, Literal
 
 import numpy as np
 
@@ -62,9 +59,10 @@ from ..sim._environment import Environment
 from ..transport._base import Transport
 from ..transport._faulty import Faults
 from ._app import SimulationApp, SimulationSetup
+from ._app_import import RESERVED, import_app, robot_counts
 from ._capacity import Capacity, capacity_problems
 from ._config import ScenarioError, from_toml, setting, show
-from ._layers import importable_from, layer_classes
+from ._layers import layer_classes
 
 __all__ = [
     "FaultsConfig",
@@ -75,13 +73,6 @@ __all__ = [
     "load_scenario",
     "parse_override",
 ]
-
-_RESERVED: Final = frozenset({"app", "faults", "layers", "run", "world"})
-_MISSING: Final = object()
-_APP_MEMBERS: Final = ("name", "config_type", "robots", "check", "build")
-"""What an app must have; ``item_name``, ``stack`` and ``messages`` are optional."""
-_IMPORT_PATH: Final = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?")
-_APP_EXPECTED: Final = 'an import path such as "package.module" or "package.module:attr"'
 
 
 @dataclass(frozen=True, slots=True)
@@ -381,7 +372,7 @@ def _merged(base: dict[str, Any], top: Mapping[str, Any]) -> dict[str, Any]:
 
 def _validate(path: Path, data: dict[str, Any]) -> Scenario:
     problems: list[tuple[str, str]] = []
-    app_path, app = _import_app(data.get("app"), problems, path)
+    app_path, app = import_app(data.get("app"), problems, path)
     run_table = data.get("run", {})
     if isinstance(run_table, dict) and run_table.get("virtual") is True:
         # Virtual time runs only in memory: that is the transport unless one is named.
@@ -396,7 +387,7 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
     config = None
     layers: dict[str, type[Layer]] = {}
     if app is not None:
-        config = _section(app.config_type, data, "", problems, others=_RESERVED)
+        config = _section(app.config_type, data, "", problems, others=RESERVED)
         layers = layer_classes(data.get("layers"), app, problems, path)
     if run is not None and run.virtual and run.transport == "udp":
         problems.append(
@@ -427,7 +418,7 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
         raise ScenarioError(problems)
     # Sizes before anything that takes time or memory in proportion to them.
     too_many = capacity_problems(
-        app.robots(config),
+        robot_counts(app, app_path, config),
         run.transport,
         Capacity.of_this_machine(),
         samples=run.max_time / run.trace_interval,
@@ -451,46 +442,3 @@ def _section(
     except ScenarioError as error:
         problems.extend(error.problems)
         return None
-
-
-def _import_app(
-    spec: object, problems: list[tuple[str, str]], path: Path
-) -> tuple[str, SimulationApp[Any] | None]:
-    """The application ``spec`` names, or ``None`` with the reason added to ``problems``."""
-    if spec is None:
-        problems.append(("app", f"missing required key (expected {_APP_EXPECTED})"))
-        return "", None
-    if not isinstance(spec, str) or not _IMPORT_PATH.fullmatch(spec):
-        problems.append(("app", f"expected {_APP_EXPECTED}, got {show(spec)}"))
-        return "", None
-    module_name, _, attribute = spec.partition(":")
-    attribute = attribute or "app"
-    importable_from(path, module_name)
-    try:
-        module = importlib.import_module(module_name)
-    except ImportError as error:
-        problems.append(("app", f"cannot import {show(module_name)}: {error}"))
-        return spec, None
-    app: Any = getattr(module, attribute, _MISSING)
-    if app is _MISSING:
-        problems.append(("app", f"module {show(module_name)} has no attribute {attribute!r}"))
-        return spec, None
-    lacking = [member for member in _APP_MEMBERS if not hasattr(app, member)]
-    if lacking:
-        problems.append(
-            ("app", f"{show(spec)} is not a simulation app: it has no {', '.join(lacking)}")
-        )
-        return spec, None
-    config_type = app.config_type
-    if not (isinstance(config_type, type) and dataclasses.is_dataclass(config_type)):
-        problems.append(
-            ("app", f"{show(spec)}: config_type must be a dataclass, got {config_type!r}")
-        )
-        return spec, None
-    clashes = sorted(_RESERVED.intersection(f.name for f in dataclasses.fields(config_type)))
-    if clashes:
-        problems.append(
-            ("app", f"{show(spec)}: config_type may not have keys {', '.join(clashes)}")
-        )
-        return spec, None
-    return spec, cast(SimulationApp[Any], app)

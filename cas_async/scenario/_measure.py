@@ -35,7 +35,11 @@ def measure_end(
     environment: Environment,
     now: float,
 ) -> None:
-    """Measures the run as it ended: the objective's figures, distances and messages."""
+    """Measures the run as it ended: the objective's figures, distances, messages, requests.
+
+    The requests are the internal ones still unanswered (see
+    :meth:`~cas_async.Robot.unanswered_requests`), read before the robots stop.
+    """
     result.sim_time = now
     result.distance = {
         robot_id: travelled
@@ -47,6 +51,11 @@ def measure_end(
     result.messages_internal = dict(sorted(messages["internal"].items()))
     result.messages_external = dict(sorted(messages["external"].items()))
     result.protocol_errors = dict(sorted(errors.items()))
+    unanswered: dict[str, int] = {}
+    for robot in mission.robots:  # none in a world process: its copies never start
+        for what, n in robot.unanswered_requests().items():
+            unanswered[what] = unanswered.get(what, 0) + n
+    result.unanswered = dict(sorted(unanswered.items()))
     if mission.extra is not None:
         result.extra.update(mission.extra())
 

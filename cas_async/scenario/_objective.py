@@ -39,7 +39,7 @@ from ..sim._items import ItemEvent, ItemEventKind
 from ._results import RunResult
 from ._trace import Trace
 
-__all__ = ["CallbackWatch", "Items", "Objective", "Tally", "Watch"]
+__all__ = ["CallbackWatch", "Items", "Objective", "Tally", "Watch", "not_distributable"]
 
 
 class Tally(NamedTuple):
@@ -123,9 +123,13 @@ class Objective(ABC):
         detail: the name of the progress line's second count (``"exchanges"``).
         kind: the objective's kind in results.json; ``"items"`` is :class:`Items`'s,
             whose results keep the item fields (created, exchanges, travel times).
-        distributable: whether the mission can run across processes
-            (``--processes``): its state lives in the world process, not in each
-            worker. Only :class:`Items` is.
+        distributable: whether the objective can run across processes
+            (``--processes``). There the robots run in worker processes, and the
+            world process holds the Environment: every robot's motions and the
+            item ledger, as the workers report them. An objective may say ``True``
+            when it reads only those (positions, distances, items: the
+            Environment and the :class:`Watch`), never a robot's layers or objects
+            the layers change (they live in other processes). :class:`Items` does.
     """
 
     noun: str = "item"
@@ -266,3 +270,19 @@ class Items(Objective):
                 result.handovers_per_item.append(
                     sum(e.kind is ItemEventKind.TRANSFERRED for e in history)
                 )
+
+
+def not_distributable(scenario: Path, app: str, objective: Objective) -> str:
+    """Why ``objective`` (of ``app``, in file ``scenario``) cannot run across processes: one line.
+
+    It says when an objective could, and how to say so.
+    """
+    name = type(objective).__name__
+    return (
+        f"{scenario}: --processes: {app}'s objective {name} is not "
+        "distributable. Across processes the robots run in workers and the world process "
+        "holds the Environment (every robot's motions and the item ledger); an objective "
+        "that reads only those (positions, distances, items: the Environment and its Watch), "
+        f"never the robots' layers, may run there: then set distributable = True on {name}. "
+        "Otherwise run without --processes."
+    )

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 import numpy.typing as npt
 
-from ._report import atomic_binary_file
+from ._atomic_files import atomic_binary_file
+from ._plot_labels import id_labels
 from ._trace import Trace
 
 if TYPE_CHECKING:
@@ -28,6 +29,8 @@ _PANELS: Final = 6
 _MARKERS: Final = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">")
 _NAMED: Final = 300
 """Robots up to which the snapshots and trajectories write each robot's id."""
+_UNLABELLED: Final = ""
+"""The row of a run without groups: its robots get no legend entry (not ``"other"``)."""
 _MARGIN: Final = 0.03
 """Fraction of the larger world side left around the world, so robots on its edge show."""
 
@@ -46,7 +49,7 @@ def write_plots(
     item_name: str = "item",
     verb: str = "delivered",
 ) -> list[Path]:
-    """Writes the five figures of a run to ``out_dir``.
+    """Writes the figures of a run to ``out_dir``: five, four without exchanges.
 
     ``initial_positions.png``, ``snapshots_by_exchange.png``, ``snapshots_by_time.png``,
     ``trajectories.png`` and ``over_time.png``:
@@ -54,7 +57,8 @@ def write_plots(
     * initial positions: the first regular sample, robot ids annotated.
     * by exchange: six snapshots: at the ``snapshot_exchanges`` counts the run
       reached, at the last snapshot, and at counts spread evenly between to fill
-      the six (fewer if fewer exist; a note if there are none).
+      the six (fewer if fewer exist). A run without exchanges (an objective that
+      reports none) gets no such figure; with ``trace_exchanges`` off, it says so.
     * by time: six regular samples at times spread evenly from the first to the
       last (a note if there are none).
     * trajectories: every robot's path through the regular samples, from a hollow
@@ -62,14 +66,15 @@ def write_plots(
     * over time: items delivered and exchanges made over time, and below, each of
       ``series`` (the application's measures) over time.
 
-    In the snapshots, robot ids are written next to each robot and a robot that
-    carries an item is circled in black.
+    In the snapshots, robot ids are written next to each robot (robots standing
+    together share one label: ``"1,3"``) and a robot that carries an item is
+    circled in black.
 
     Args:
         trace: the run's positions.
         groups: robot ids by label, in legend order; each group gets its own colour
             and marker. Robots of the trace in no group are drawn as ``"other"``;
-            ids not in the trace are ignored.
+            ids not in the trace are ignored. No groups at all: one colour, no legend.
         world: ``(width, height)`` of the area, with its corner at ``(0, 0)``.
         out_dir: where to write (created if missing).
         title: shown above every figure (e.g. the app's name and the seed).
@@ -101,11 +106,10 @@ def write_plots(
     axes = figure.add_subplot()
     if len(trace.times):
         _scatter(axes, trace.positions[0], rows, world, size=22)
-        for robot_id, (x, y) in zip(trace.ids, trace.positions[0].tolist(), strict=True):
-            axes.annotate(
-                str(robot_id), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6
-            )
-        if rows:
+        if len(trace.ids) <= _NAMED:
+            for text, at in id_labels(trace.ids, trace.positions[0], world):
+                axes.annotate(text, at, xytext=(3, 3), textcoords="offset points", fontsize=6)
+        if _labelled(rows):
             axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
         axes.set_title(f"t = {trace.times[0]:.1f} s", fontsize=10)
     else:
@@ -122,15 +126,14 @@ def write_plots(
         )
         for k in picks
     ]
-    figure = _panels(f"{title}: snapshots by exchange", panels, rows, world, trace.ids)
-    if not panels:
-        _note(
-            figure.add_subplot(),
-            "no exchanges recorded"
-            if exchanges_traced
-            else "exchange snapshots switched off\n([run] trace_exchanges = false)",
-        )
-    paths.append(_save(figure, out_dir / "snapshots_by_exchange.png"))
+    if panels or not exchanges_traced:  # no figure at all for a run without exchanges
+        figure = _panels(f"{title}: snapshots by exchange", panels, rows, world, trace.ids)
+        if not panels:
+            _note(
+                figure.add_subplot(),
+                "exchange snapshots switched off\n([run] trace_exchanges = false)",
+            )
+        paths.append(_save(figure, out_dir / "snapshots_by_exchange.png"))
 
     times = trace.times
     picks = _at_times(times, _PANELS)
@@ -188,14 +191,14 @@ def _trajectories(
     axes.scatter(starts[:, 0], starts[:, 1], s=18, facecolors="none", edgecolors=colours)
     axes.scatter(ends[:, 0], ends[:, 1], s=18, color=colours)
     if len(moved) <= _NAMED:
-        for k, end in zip(moved.tolist(), ends.tolist(), strict=True):
-            axes.annotate(
-                str(trace.ids[k]), end, xytext=(3, 3), textcoords="offset points", fontsize=6
-            )
+        moved_ids = [trace.ids[k] for k in moved.tolist()]
+        for text, at in id_labels(moved_ids, ends, world):
+            axes.annotate(text, at, xytext=(3, 3), textcoords="offset points", fontsize=6)
     moving = set(moved.tolist())
     still = [(label, [k for k in members if k not in moving]) for label, members in rows]
-    _scatter(axes, positions[-1], [(label, ks) for label, ks in still if ks], world, size=40)
-    if any(ks for _, ks in still):
+    still = [(label, ks) for label, ks in still if ks]
+    _scatter(axes, positions[-1], still, world, size=40)
+    if _labelled(still):
         axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     axes.set_title(
         f"t = {trace.times[0]:.1f} to {trace.times[-1]:.1f} s; hollow: start, filled: end",
@@ -243,8 +246,13 @@ def _over_time(
 
 
 def _group_rows(trace: Trace, groups: dict[str, list[int]]) -> list[tuple[str, list[int]]]:
-    """``(label, trace rows)`` per non-empty group, robots in no group last as ``"other"``."""
+    """``(label, trace rows)`` per non-empty group, robots in no group last as ``"other"``.
+
+    Without groups at all, every robot is in one row that no legend shows.
+    """
     row_of = {robot_id: k for k, robot_id in enumerate(trace.ids)}
+    if not groups:
+        return [(_UNLABELLED, list(row_of.values()))] if row_of else []
     placed: set[int] = set()
     rows = []
     for label, ids in groups.items():
@@ -256,6 +264,11 @@ def _group_rows(trace: Trace, groups: dict[str, list[int]]) -> list[tuple[str, l
     if others:
         rows.append(("other", others))
     return rows
+
+
+def _labelled(rows: Sequence[tuple[str, list[int]]]) -> bool:
+    """Whether a legend has anything to show for ``rows``."""
+    return any(label != _UNLABELLED for label, _ in rows)
 
 
 def _spread(available: int, wanted: int) -> list[int]:
@@ -293,7 +306,7 @@ def _panels(
     grid = figure.subplots(2, 3, squeeze=False, sharex=True, sharey=True)
     for axes, (panel_title, xy, carrying) in zip(grid.flat, panels, strict=False):
         _scatter(axes, xy, rows, world, size=10)
-        _mark(axes, xy, carrying, ids)
+        _mark(axes, xy, carrying, ids, world)
         axes.set_title(panel_title, fontsize=10)
         axes.label_outer()
     for k in range(len(panels), _PANELS):
@@ -301,9 +314,9 @@ def _panels(
         if k >= 3:  # the panel above is now its column's lowest: give it the x labels
             grid.flat[k - 3].tick_params(labelbottom=True)
             grid.flat[k - 3].set_xlabel("x")
-    if rows:
-        handles, labels = grid.flat[0].get_legend_handles_labels()
-        figure.legend(handles, labels, loc="lower center", ncols=min(len(rows), 6))
+    handles, labels = grid.flat[0].get_legend_handles_labels()  # groups, and "carrying"
+    if handles:
+        figure.legend(handles, labels, loc="lower center", ncols=min(len(handles), 6))
     return figure
 
 
@@ -323,7 +336,7 @@ def _scatter(
             s=size,
             marker=_MARKERS[k % len(_MARKERS)],
             color=f"C{k % 10}",
-            label=label,
+            label=None if label == _UNLABELLED else label,
         )
     width, height = world
     margin = _MARGIN * max(width, height)
@@ -336,11 +349,16 @@ def _scatter(
 
 
 def _mark(
-    axes: Axes, xy: npt.NDArray[np.float64], carrying: npt.NDArray[np.bool_], ids: Sequence[int]
+    axes: Axes,
+    xy: npt.NDArray[np.float64],
+    carrying: npt.NDArray[np.bool_],
+    ids: Sequence[int],
+    world: tuple[float, float],
 ) -> None:
     """Circles the robots that carry an item and writes every robot's id beside it.
 
-    Ids only up to ``_NAMED`` robots: thousands of labels are unreadable, and slow to draw.
+    Robots standing together share a label (see :func:`id_labels`). Ids only up to
+    ``_NAMED`` robots: thousands of labels are unreadable, and slow to draw.
     """
     held = xy[carrying]
     if len(held):
@@ -348,8 +366,8 @@ def _mark(
                      linewidths=0.8, label="carrying")  # fmt: skip
     if len(ids) > _NAMED:
         return
-    for robot_id, (x, y) in zip(ids, xy.tolist(), strict=True):
-        axes.annotate(str(robot_id), (x, y), xytext=(2, 2), textcoords="offset points", fontsize=5)
+    for text, at in id_labels(ids, xy, world):
+        axes.annotate(text, at, xytext=(2, 2), textcoords="offset points", fontsize=5)
 
 
 def _note(axes: Axes, text: str) -> None:

@@ -19,6 +19,12 @@ robots' positions (one number each, over time, by exchange count), and
 ``faults`` is ``null`` unless the scenario has a ``[faults]`` table; then it holds
 the fault counts (``sent``, ``lost``, ...) and the table gets a ``faults`` line.
 
+``fail_on_drops`` is ``null`` unless the run was asked to fail on drops
+(``run --fail-on-drops``); then it lists the reasons (empty: any), and
+``failing_drops`` the drops by reason that failed it. ``unanswered`` counts the
+internal requests still waiting when the run ended that their asked layer had not
+answered (``get_intra_msg_reply`` returned ``None``), by who asked what of whom.
+
 That is a mission of items (``kind`` ``"items"``, the Fire Brigade's). A mission with
 an objective of its own has no item fields (``created``, ``exchanges``,
 ``travel_times``, ``handovers_per_item`` and their statistics); it has ``kind``,
@@ -28,27 +34,20 @@ under ``statistics`` by its name.
 
 from __future__ import annotations
 
-import contextlib
 import datetime
 import json
 import math
-import os
-import tempfile
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import IO, Any, BinaryIO, TextIO, cast
+from typing import Any, cast
 
 import numpy as np
 
+from ._atomic_files import atomic_text_file
 from ._results import RunResult, RunStatus
 
 __all__ = [
-    "AtomicFile",
-    "atomic_binary_file",
-    "atomic_text_file",
     "plural",
-    "remove_partial_files",
     "results_dict",
     "statistics",
     "summary_table",
@@ -175,6 +174,9 @@ def _common_data(result: RunResult) -> dict[str, Any]:
         "messages_internal": dict(sorted(result.messages_internal.items())),
         "messages_external": dict(sorted(result.messages_external.items())),
         "protocol_errors": dict(sorted(result.protocol_errors.items())),
+        "fail_on_drops": None if result.fail_on_drops is None else list(result.fail_on_drops),
+        "failing_drops": dict(result.failing_drops),
+        "unanswered": dict(result.unanswered),
         "faults": None if result.faults is None else dict(result.faults),
         "groups": {label: list(ids) for label, ids in result.groups.items()},
         "extra": dict(result.extra),
@@ -217,98 +219,6 @@ def write_results(result: RunResult, out_dir: Path) -> Path:
     return path
 
 
-class AtomicFile:
-    """A file written under a temporary name, that becomes ``path`` only when committed.
-
-    The temporary file sits next to ``path`` (``.name.XXXX.tmp``), so the final
-    rename is atomic: readers see the previous file or the whole new one, and a
-    write that is interrupted or :meth:`discard`-ed leaves nothing behind.
-    The file gets the usual mode (0666 less the umask), like any file a program writes.
-
-    Args:
-        path: the file to write.
-        binary: a binary stream instead of UTF-8 text.
-    """
-
-    def __init__(self, path: Path, *, binary: bool = False) -> None:
-        self.path = Path(path)
-        fd, self._temp = tempfile.mkstemp(
-            dir=self.path.parent, prefix=f".{self.path.name}.", suffix=".tmp"
-        )
-        _in_progress.add(self._temp)
-        try:
-            umask = os.umask(0)  # mkstemp makes it private (0600)
-            os.umask(umask)
-            os.chmod(fd, 0o666 & ~umask)
-            self.stream: IO[Any] = (
-                os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
-            )
-        except BaseException:
-            os.close(fd)
-            self.discard()
-            raise
-
-    def commit(self) -> Path:
-        """Flushes the file to disk and puts it in place; returns its path."""
-        try:
-            self.stream.flush()
-            os.fsync(self.stream.fileno())
-            self.stream.close()
-            os.replace(self._temp, self.path)
-        except BaseException:
-            self.discard()
-            raise
-        _in_progress.discard(self._temp)
-        return self.path
-
-    def discard(self) -> None:
-        """Drops what was written; ``path`` stays as it was. Idempotent."""
-        stream = getattr(self, "stream", None)
-        if stream is not None:
-            with contextlib.suppress(OSError):
-                stream.close()
-        Path(self._temp).unlink(missing_ok=True)
-        _in_progress.discard(self._temp)
-
-
-@contextmanager
-def atomic_text_file(path: Path) -> Iterator[TextIO]:
-    """A UTF-8 text stream that becomes ``path`` only if the ``with`` body completes."""
-    with _atomic(path, binary=False) as stream:
-        yield cast(TextIO, stream)
-
-
-@contextmanager
-def atomic_binary_file(path: Path) -> Iterator[BinaryIO]:
-    """A binary stream that becomes ``path`` only if the ``with`` body completes."""
-    with _atomic(path, binary=True) as stream:
-        yield cast(BinaryIO, stream)
-
-
-@contextmanager
-def _atomic(path: Path, *, binary: bool) -> Iterator[IO[Any]]:
-    file = AtomicFile(path, binary=binary)
-    try:
-        yield file.stream
-    except BaseException:  # also on Ctrl-C: the temp file must not outlive the write
-        file.discard()
-        raise
-    file.commit()
-
-
-_in_progress: set[str] = set()  # temporary files of the atomic writes under way
-
-
-def remove_partial_files() -> None:
-    """Removes the temporary files of atomic writes still under way, for a process about to end.
-
-    A process that ends at once (``os._exit``) runs no ``finally``: it calls this
-    first, so that no half-written temporary file is left next to the results.
-    """
-    for name in list(_in_progress):
-        Path(name).unlink(missing_ok=True)
-
-
 # -- the summary table ---------------------------------------------------------------
 
 
@@ -345,6 +255,16 @@ def summary_table(result: RunResult) -> str:
     rows.append(("messages internal", _counts_parts(result.messages_internal, total=True), ""))
     rows.append(("messages external", _counts_parts(result.messages_external, total=True), ""))
     rows.append(("messages dropped", _counts_parts(result.protocol_errors, total=False), ""))
+    if result.fail_on_drops is not None:
+        rows.append(_fail_on_drops_row(result))
+    if result.unanswered:
+        rows.append(
+            (
+                "unanswered requests",
+                _counts_parts(result.unanswered, total=False),
+                "(get_intra_msg_reply returned None, and no reply followed)",
+            )
+        )
     if result.faults is not None:
         rows.append(("faults", _faults_parts(result.faults), ""))
     if result.groups:
@@ -396,6 +316,15 @@ def _objective_rows(result: RunResult) -> list[_Row]:
     return rows
 
 
+def _fail_on_drops_row(result: RunResult) -> _Row:
+    """What ``--fail-on-drops`` asked, and whether the run's drops failed it."""
+    reasons = ", ".join(result.fail_on_drops or ()) or "any reason"
+    if not result.failing_drops:
+        return ("fail on drops", reasons, "(none dropped: passed)")
+    total = sum(result.failing_drops.values())
+    return ("fail on drops", reasons, f"({total:,} dropped: the run failed)")
+
+
 def _render(rows: Sequence[_Row]) -> list[str]:
     # the value column starts after the longest label, as in the thesis-style example
     width = max(_LABEL_WIDTH, *(len(label) + 1 for label, _, _ in rows))
@@ -403,6 +332,9 @@ def _render(rows: Sequence[_Row]) -> list[str]:
     for label, value, note in rows:
         if isinstance(value, list):
             wrapped = _wrap(value, _LINE_WIDTH - width)
+            if note:  # after the last part, or on a line of its own
+                fits = len(wrapped[-1]) + 2 + len(note) <= _LINE_WIDTH - width
+                wrapped = [*wrapped[:-1], f"{wrapped[-1]}  {note}"] if fits else [*wrapped, note]
             lines.append(f"{label:<{width}}{wrapped[0]}".rstrip())
             lines.extend(" " * width + line for line in wrapped[1:])
         elif note:

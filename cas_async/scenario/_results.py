@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from statistics import fmean
 from typing import Any
 
-__all__ = ["RunResult", "RunStatus"]
+__all__ = ["RunProgress", "RunResult", "RunStatus"]
 
 
 class RunStatus(enum.StrEnum):
@@ -69,6 +69,14 @@ class RunResult:
         samples: an objective's own values per thing done (``"time_per_object"``):
             summarised with :func:`~cas_async.scenario.statistics` in the table and
             results.json.
+        fail_on_drops: the drop reasons that fail the run (``run --fail-on-drops``;
+            empty: any reason), ``None`` when drops fail nothing (the default).
+        failing_drops: the drops, by reason, that failed the run (or would have:
+            a run that failed for something else keeps its error).
+        unanswered: internal requests still unanswered when the run ended, whose
+            asked layer's ``get_intra_msg_reply`` had returned ``None``: how many,
+            by ``"robot layer asked Request of layer"`` (see
+            :meth:`~cas_async.Swarm.unanswered_requests`).
     """
 
     scenario: str
@@ -103,6 +111,9 @@ class RunResult:
     verb: str = "delivered"
     detail: str = "exchanges"
     samples: dict[str, list[float]] = field(default_factory=dict)
+    fail_on_drops: list[str] | None = None
+    failing_drops: dict[str, int] = field(default_factory=dict)
+    unanswered: dict[str, int] = field(default_factory=dict)
 
     def scalars(self) -> dict[str, float]:
         """The run's figures as numbers, one per name: what a sweep tabulates.
@@ -135,3 +146,33 @@ class RunResult:
             if isinstance(value, int | float) and not isinstance(value, bool):
                 figures.setdefault(name, float(value))
         return figures
+
+
+@dataclass(frozen=True, slots=True)
+class RunProgress:
+    """Where a run stands: what its progress line shows, as numbers.
+
+    Attributes:
+        time: simulated seconds since the robots started (0 before).
+        done: how many of the target are done (buckets delivered, objects moved).
+        target: how many must be done for the mission to be complete (0 until the
+            robots are built).
+        detail: the progress line's second count (exchanges, for an item mission).
+        status: how the run ended; ``None`` while it has not.
+    """
+
+    time: float = 0.0
+    done: int = 0
+    target: int = 0
+    detail: int = 0
+    status: RunStatus | None = None
+
+    @property
+    def fraction(self) -> float:
+        """``done / target``, between 0 and 1 (0 while the target is not known)."""
+        return min(1.0, self.done / self.target) if self.target > 0 else 0.0
+
+    @property
+    def ended(self) -> bool:
+        """Whether the run has ended (its :attr:`status` is known)."""
+        return self.status is not None

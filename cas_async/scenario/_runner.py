@@ -31,55 +31,20 @@ from .._swarm import Swarm
 from .._swarm_key import SwarmKey
 from ..sim._environment import Environment
 from ..transport._authenticated import AuthenticatedTransport
-from ..transport._base import Transport
 from ..transport._faulty import FaultyTransport
-from ..transport._memory import MemoryTransport
-from ..transport._udp import UdpTransport
-from ..transport._zenoh import ZenohTransport
 from ._app import Mission
 from ._distributed import World
 from ._gc_policy import young_generation_for
 from ._layers import check_built
 from ._loader import Scenario
 from ._measure import mark_failed, measure_end, measure_positions
-from ._objective import CallbackWatch, Items, Objective
+from ._objective import CallbackWatch, Items, Objective, not_distributable
 from ._progress import Progress
-from ._results import RunResult, RunStatus
+from ._results import RunProgress, RunResult, RunStatus
+from ._run_transport import run_transport
 from ._trace import Trace, TraceCsv
 
-__all__ = ["ScenarioRun", "check_key", "run_scenario"]
-
-
-def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
-    """Raises ``ConfigurationError`` when ``scenario`` cannot run signed with ``key``."""
-    if scenario.run.pass_objects and key is not None:
-        raise ConfigurationError(
-            f"{scenario.path}: run.pass_objects passes message objects, which a swarm key cannot "
-            "sign; set run.pass_objects = false to run with a key"
-        )
-
-
-def _transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transport:
-    """The run's transport: the ``[faults]`` on the wire, if any, and signed with ``key``."""
-    run = scenario.run
-    check_key(scenario, key)
-    transport: Transport
-    if run.transport == "memory":
-        transport = MemoryTransport(pass_objects=run.pass_objects)
-    elif run.transport == "zenoh":
-        if run.virtual:
-            raise ConfigurationError(
-                f"{scenario.path}: run.transport: virtual time over Zenoh needs processes that "
-                "share it: run with --processes N, or on scaled time (virtual = false)"
-            )
-        transport = ZenohTransport()
-    else:
-        transport = UdpTransport()
-    faults = scenario.faults.as_faults()
-    if faults.any:
-        seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
-        transport = FaultyTransport(transport, faults, seed=seed, clock=clock)
-    return transport if key is None else AuthenticatedTransport(transport, key)
+__all__ = ["ScenarioRun", "run_scenario"]
 
 
 @final
@@ -142,7 +107,7 @@ class ScenarioRun:
         self.environment = environment = Environment()
         self._clock = clock = scenario.clock()
         if world is None:
-            self._transport = _transport(scenario, clock, key)
+            self._transport = run_transport(scenario, clock, key)
         else:  # the robots run in the workers: these copies never start
             world.use_clock(clock)
             self._transport = world.transport()
@@ -155,11 +120,7 @@ class ScenarioRun:
             raise ConfigurationError(f"{scenario.path}: {error}") from None
         self._objective = objective = _objective_of(mission, scenario)
         if world is not None and not objective.distributable:
-            raise ConfigurationError(
-                f"{scenario.path}: {scenario.app.name}'s mission ({type(objective).__name__}) "
-                "keeps its state in each process: it cannot run across processes "
-                "(run it without --processes)"
-            )
+            raise ConfigurationError(not_distributable(scenario.path, scenario.app.name, objective))
         self._progress = None
         if progress_to is not None:
             self._progress = Progress(
@@ -220,6 +181,25 @@ class ScenarioRun:
             return
         xy = self.environment.positions_at(t).xy
         self.trace.exchange(t, count, xy, self._carrying())
+
+    def now(self) -> float:
+        """Simulated seconds since the robots started: 0 before, the end's instant after.
+
+        Call it on the run's own loop (where it runs); from another thread, see
+        :class:`~cas_async.scenario.BackgroundRun`.
+        """
+        if self._ended:
+            return self.result.sim_time
+        return self._clock.now() if self._started_swarm else 0.0
+
+    def progress(self) -> RunProgress:
+        """Where the run stands now: simulated time, done of the target, how it ended.
+
+        On the run's loop, as :meth:`now`.
+        """
+        done, detail = self._objective.progress()
+        status = self.result.status if self._ended else None
+        return RunProgress(self.now(), done, self._objective.target, detail, status)
 
     @property
     def mission(self) -> Mission:
@@ -321,6 +301,8 @@ class ScenarioRun:
             self.environment,
             self._clock.now(),
         )
+        if status is RunStatus.COMPLETED and result.makespan is not None:
+            self._sample_last(result.makespan)  # the trace ends where the mission did
         measure_positions(result, self._mission, self.trace)
         if self._world is not None:
             result.extra.update(self._world.stats())
@@ -373,6 +355,12 @@ class ScenarioRun:
             self._progress.update(t, done, detail)
         if self._trace_csv is not None:
             self._trace_csv.write_until(t)  # what came before this sample is final
+
+    def _sample_last(self, t: float) -> None:
+        """A last regular sample at ``t``, unless one was taken there (or later)."""
+        times = self.trace.times
+        if not len(times) or times[-1] < t:
+            self.trace.sample(t, self.environment.positions_at(t).xy, self._carrying())
 
     def _carrying(self) -> npt.NDArray[np.bool_]:
         """Which robots of the trace carry something now, in the trace's row order."""

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
-from ._report import atomic_binary_file
+from ._atomic_files import atomic_binary_file
 from ._sweep_results import SweepOutcome
 
 if TYPE_CHECKING:

@@ -22,7 +22,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Final
 
-from ._report import atomic_text_file
+from ._atomic_files import atomic_text_file
 from ._sweep_results import SweepOutcome, SweepRun
 
 __all__ = [

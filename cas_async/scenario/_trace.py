@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._errors import SimulationError
-from ._report import AtomicFile
+from ._atomic_files import AtomicFile
 
 __all__ = ["Trace", "TraceCsv"]
 

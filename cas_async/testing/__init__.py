@@ -25,21 +25,14 @@ The helpers work in any asyncio test, with or without the plugin:
 another process).
 """
 
-from ._helpers import (
-    LayerHarness,
-    Recorder,
-    Robots,
-    RunUntilTimeout,
-    ScenarioOutcome,
-    Script,
-    UnexpectedDrops,
-    assert_roundtrip,
-    peer_process,
-    run_scenario_file,
-    run_until,
-    wait_all_tasks_blocked,
-)
+from ._harness import LayerHarness, Script
+from ._peers import peer_process
+from ._recorder import Recorder
+from ._robots import Robots, UnexpectedDrops
+from ._roundtrip import assert_roundtrip
+from ._scenario_files import ScenarioOutcome, run_scenario_file
 from ._strategies import strategy_for
+from ._waiting import RunUntilTimeout, run_until, wait_all_tasks_blocked
 
 __all__ = [
     "LayerHarness",

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
-from cas_async import ConstantSpeed, Layer, Message, Pose, Robot
+from cas_async import ConstantSpeed, Layer, Message, Pose
 from cas_async.scenario import LayerSlot, Mission, ScenarioError, SimulationSetup, setting
 from cas_async.sim import SimulatedMiddleware
 
@@ -105,16 +105,7 @@ class GatheringApp:
                 speed_profile=ConstantSpeed(fleet.speed),
             )
             layers: list[Layer] = [plan(home, team, meeting.patience), drive(middleware)]
-            robots.append(
-                Robot(
-                    robot_id,
-                    layers,
-                    transport=setup.transport,
-                    clock=setup.clock,
-                    messages=MESSAGES,
-                    restart=setup.restart,
-                )
-            )
+            robots.append(setup.robot(robot_id, layers, messages=MESSAGES))
         return Mission(robots, objective=Gathered(homes, meeting.radius, setup.world))
 
 

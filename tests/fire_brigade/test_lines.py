@@ -71,6 +71,7 @@ def last_third_shares(strategy: str) -> list[float]:
     return shares
 
 
+@pytest.mark.slow
 def test_the_shipped_scenario_forms_lines_that_solo_carriers_do_not() -> None:
     # The shipped rule (time_gain) keeps most Transporters on the two lines over the
     # last third of a run; carrying solo leaves them parked at the Sinks. Seeds 1-20

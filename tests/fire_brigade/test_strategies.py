@@ -181,6 +181,7 @@ def test_time_breaks_ties_by_robot_id() -> None:
     assert TimeStrategy(params()).choose(v) == [LEFT.robot, RIGHT.robot]
 
 
+@pytest.mark.slow
 def test_time_ignores_the_order_candidates_come_in() -> None:
     strategy = TimeStrategy(params())
     orders = {tuple(strategy.choose(view(order))) for order in itertools.permutations(AROUND)}

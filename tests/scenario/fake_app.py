@@ -46,6 +46,38 @@ other = FakeApp()  # reached with "tests.scenario.fake_app:other"
 not_an_app = object()
 
 
+class _NoRobots:
+    """The README's contract before it listed ``robots``: everything else is there."""
+
+    name = "No robots"
+    config_type = FakeConfig
+
+    def check(self, config: FakeConfig, world: tuple[float, float]) -> None:
+        pass
+
+    def build(self, setup: SimulationSetup) -> Mission:
+        return Mission(robots=[], target=0)
+
+
+no_robots = _NoRobots()
+
+
+class _NotCallable(FakeApp):
+    build = "robots go here"  # type: ignore[assignment]
+    item_name = 3  # type: ignore[assignment]
+
+
+not_callable = _NotCallable()
+
+
+class _WrongCounts(FakeApp):
+    def robots(self, config: FakeConfig) -> dict[str, int]:
+        return {"robots.count": "three"}  # type: ignore[dict-item]
+
+
+wrong_counts = _WrongCounts()
+
+
 class _Untyped:
     name = "Untyped"
     item_name = "thing"

@@ -259,10 +259,12 @@ def test_run_and_world_are_checked_even_when_the_app_is_not_found(write: WriteSc
             id="no-attribute",
         ),
         pytest.param(
-            'app = "tests.scenario.fake_app:not_an_app"',
-            '"tests.scenario.fake_app:not_an_app" is not a simulation app: '
-            "it has no name, config_type, robots, check, build",
-            id="not-an-app",
+            'app = "tests.scenario.fake_app:no_robots"',
+            'app "tests.scenario.fake_app:no_robots" lacks robots(config) -> Mapping[str, int]: '
+            "how many robots a configuration builds, by the key that sets each number, so that "
+            "the loader checks this machine holds them before anything is built "
+            "(see cas_async.scenario.SimulationApp)",
+            id="no-robots",
         ),
         pytest.param(
             'app = "tests.scenario.fake_app:clashing"',
@@ -280,6 +282,69 @@ def test_run_and_world_are_checked_even_when_the_app_is_not_found(write: WriteSc
 def test_bad_app(write: WriteScenario, app_line: str, message: str) -> None:
     text = f"{app_line}\n[world]\nwidth = 1\nheight = 1\n"
     assert problems_loading(write(text)) == [("app", message)]
+
+
+def test_an_object_that_is_no_app_is_told_every_member_it_lacks(write: WriteScenario) -> None:
+    text = 'app = "tests.scenario.fake_app:not_an_app"\n[world]\nwidth = 1\nheight = 1\n'
+    problems = problems_loading(write(text))
+    assert [key for key, _ in problems] == ["app"] * 5
+    lacking = [message.split(" lacks ")[1].split(":")[0] for _, message in problems]
+    assert lacking == [
+        "name",
+        "config_type",
+        "robots(config) -> Mapping[str, int]",
+        "check(config, world) -> None",
+        "build(setup",
+    ]
+    assert all(
+        message.startswith('app "tests.scenario.fake_app:not_an_app" lacks ')
+        for _, message in problems
+    )
+
+
+def test_members_of_the_wrong_kind_are_named(write: WriteScenario) -> None:
+    text = 'app = "tests.scenario.fake_app:not_callable"\n[world]\nwidth = 1\nheight = 1\n'
+    assert problems_loading(write(text)) == [
+        (
+            "app",
+            "app \"tests.scenario.fake_app:not_callable\" has build = 'robots go here', which "
+            "is not a method; expected build(setup: SimulationSetup) -> Mission: builds the "
+            "robots, adds them to setup.environment and says what the mission is for "
+            "(see cas_async.scenario.SimulationApp)",
+        ),
+        (
+            "app",
+            'app "tests.scenario.fake_app:not_callable" has item_name = 3, which is not text; '
+            "expected item_name: str, what a target's items are (default 'item') "
+            "(see cas_async.scenario.SimulationApp)",
+        ),
+    ]
+
+
+def test_robot_counts_that_are_no_counts_are_the_app_s_fault(write: WriteScenario) -> None:
+    text = 'app = "tests.scenario.fake_app:wrong_counts"\n[world]\nwidth = 1\nheight = 1\n'
+    assert problems_loading(write(text)) == [
+        (
+            "app",
+            'app "tests.scenario.fake_app:wrong_counts": robots(config) returned '
+            "{'robots.count': 'three'}; expected robot counts by the key that sets each, "
+            'such as {"robots.count": 5}',
+        )
+    ]
+
+
+def test_the_protocol_and_the_loader_agree_on_the_members() -> None:
+    from cas_async.scenario import SimulationApp
+    from cas_async.scenario._app import APP_MEMBERS
+
+    declared = {
+        name
+        for name in (*SimulationApp.__annotations__, *vars(SimulationApp))
+        if not name.startswith("_")
+    }
+    required = {name for name, (needed, _) in APP_MEMBERS.items() if needed}
+    assert declared == required
+    assert all(name in (SimulationApp.__doc__ or "") for name in APP_MEMBERS)
 
 
 def test_missing_file(tmp_path: Path) -> None:

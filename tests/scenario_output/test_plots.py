@@ -3,13 +3,18 @@ from __future__ import annotations
 import ast
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
 import cas_async
 from cas_async.scenario import Trace, write_plots
+from cas_async.scenario._plot_labels import id_labels
 from cas_async.scenario._plots import _at_times, _exchange_picks, _spread
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 NAMES = [
@@ -121,31 +126,92 @@ def test_carriers_are_circled_and_robots_named(
 
 def test_without_records_each_figure_is_a_note(tmp_path: Path) -> None:
     written = write_plots(Trace([1, 2]), {}, (10.0, 10.0), tmp_path, title="empty")
-    assert [path.name for path in written] == NAMES
+    # no exchange figure at all: a run without exchanges has nothing to show there
+    assert [path.name for path in written] == [n for n in NAMES if "exchange" not in n]
     for path in written:
         assert_png(path)
+    assert not (tmp_path / "snapshots_by_exchange.png").exists()
 
 
-@pytest.mark.parametrize(
-    ("traced", "note"),
-    [
-        pytest.param(True, "no exchanges recorded", id="traced-none-happened"),
-        pytest.param(False, "exchange snapshots switched off", id="switched-off"),
-    ],
-)
-def test_the_empty_exchange_figure_says_why_it_is_empty(
-    tmp_path: Path, plot_notes: list[str], traced: bool, note: str
+def test_a_run_without_exchanges_gets_no_exchange_figure(
+    tmp_path: Path, plot_notes: list[str]
 ) -> None:
-    write_plots(
+    written = write_plots(walking_trace(samples=3, exchanges=0), GROUPS, (60.0, 50.0), tmp_path,
+                          title="t")  # fmt: skip
+    assert "snapshots_by_exchange.png" not in [path.name for path in written]
+    assert not (tmp_path / "snapshots_by_exchange.png").exists()
+    assert plot_notes == []
+
+
+def test_switched_off_exchange_snapshots_are_said_so(tmp_path: Path, plot_notes: list[str]) -> None:
+    written = write_plots(
         walking_trace(samples=3, exchanges=0),
         GROUPS,
         (60.0, 50.0),
         tmp_path,
         title="t",
-        exchanges_traced=traced,
+        exchanges_traced=False,
     )
+    assert "snapshots_by_exchange.png" in [path.name for path in written]
     assert len(plot_notes) == 1  # the exchange figure only: the other two have samples
-    assert plot_notes[0].startswith(note)
+    assert plot_notes[0].startswith("exchange snapshots switched off")
+
+
+def figure_texts(monkeypatch: pytest.MonkeyPatch) -> dict[str, list[str]]:
+    """The labels and legend entries each figure gets, by file name, once written."""
+    from cas_async.scenario import _plots as plots
+
+    texts: dict[str, list[str]] = {}
+    save = plots._save
+
+    def recording_save(figure: Figure, path: Path) -> Path:
+        found = [t.get_text() for axes in figure.axes for t in axes.texts]
+        legends = [*figure.legends, *(a.get_legend() for a in figure.axes if a.get_legend())]
+        found += [f"legend:{t.get_text()}" for legend in legends for t in legend.get_texts()]
+        texts[path.name] = found
+        return save(figure, path)
+
+    monkeypatch.setattr(plots, "_save", recording_save)
+    return texts
+
+
+def test_robots_standing_together_share_one_label(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    texts = figure_texts(monkeypatch)
+    trace = Trace([1, 3, 12, 31])
+    together = np.array([[10.0, 10.0], [10.05, 10.0], [40.0, 20.0], [40.0, 20.3]])
+    for t in (0.0, 1.0):
+        trace.sample(t, together, np.zeros(4, dtype=bool))
+    trace.exchange(0.5, 1, together, np.zeros(4, dtype=bool))
+    write_plots(trace, {"Robot": [1, 3, 12, 31]}, (60.0, 50.0), tmp_path, title="t")
+    for name in ("initial_positions.png", "snapshots_by_exchange.png", "snapshots_by_time.png"):
+        labels = [text for text in texts[name] if not text.startswith("legend:")]
+        assert set(labels) == {"1,3", "12,31"}, name
+    # robots that did not move get a marker and a legend entry, but no label, in trajectories
+    assert "1" not in texts["trajectories.png"]
+
+
+def test_id_labels_part_only_robots_whose_labels_would_overlap() -> None:
+    world = (100.0, 100.0)
+    xy = np.array([[0.0, 0.0], [0.5, 0.0], [50.0, 50.0], [10.0, 10.0], [10.0, 30.0]])
+    assert id_labels([3, 1, 2, 31, 4], xy, world) == [
+        ("1,3", (0.5, 0.0)),
+        ("2", (50.0, 50.0)),
+        ("4", (10.0, 30.0)),
+        ("31", (10.0, 10.0)),
+    ]
+    crowd = np.zeros((8, 2))
+    assert id_labels(list(range(1, 9)), crowd, world) == [("1,2,3 +5", (0.0, 0.0))]
+
+
+def test_no_groups_no_other_legend(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    texts = figure_texts(monkeypatch)
+    write_plots(walking_trace(samples=4, exchanges=6), {}, (60.0, 50.0), tmp_path, title="t")
+    entries = [text for found in texts.values() for text in found if text.startswith("legend:")]
+    assert "legend:other" not in entries
+    assert set(entries) <= {"legend:carrying", "legend:boxs delivered", "legend:items delivered",
+                            "legend:exchanges"}  # fmt: skip
 
 
 @pytest.mark.parametrize(

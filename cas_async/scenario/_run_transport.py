@@ -1,0 +1,48 @@
+"""The transport a scenario's robots talk over: the wire it names, its faults, the swarm key."""
+
+from __future__ import annotations
+
+from .._clock import Clock
+from .._errors import ConfigurationError
+from .._swarm_key import SwarmKey
+from ..transport._authenticated import AuthenticatedTransport
+from ..transport._base import Transport
+from ..transport._faulty import FaultyTransport
+from ..transport._memory import MemoryTransport
+from ..transport._udp import UdpTransport
+from ..transport._zenoh import ZenohTransport
+from ._loader import Scenario
+
+__all__ = ["check_key", "run_transport"]
+
+
+def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
+    """Raises ``ConfigurationError`` when ``scenario`` cannot run signed with ``key``."""
+    if scenario.run.pass_objects and key is not None:
+        raise ConfigurationError(
+            f"{scenario.path}: run.pass_objects passes message objects, which a swarm key cannot "
+            "sign; set run.pass_objects = false to run with a key"
+        )
+
+
+def run_transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transport:
+    """The run's transport: the ``[faults]`` on the wire, if any, and signed with ``key``."""
+    run = scenario.run
+    check_key(scenario, key)
+    transport: Transport
+    if run.transport == "memory":
+        transport = MemoryTransport(pass_objects=run.pass_objects)
+    elif run.transport == "zenoh":
+        if run.virtual:
+            raise ConfigurationError(
+                f"{scenario.path}: run.transport: virtual time over Zenoh needs processes that "
+                "share it: run with --processes N, or on scaled time (virtual = false)"
+            )
+        transport = ZenohTransport()
+    else:
+        transport = UdpTransport()
+    faults = scenario.faults.as_faults()
+    if faults.any:
+        seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
+        transport = FaultyTransport(transport, faults, seed=seed, clock=clock)
+    return transport if key is None else AuthenticatedTransport(transport, key)
