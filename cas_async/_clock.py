@@ -162,8 +162,13 @@ class Clock(ABC):
         timeouts, ``wake_after``). Padded by the loop's timer rounding, so that a
         timer armed for it finds ``now()`` at or past the instant.
         """
-        loop, pad = self._loop_and_pad()
-        return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second() + pad
+        loop = self._loop
+        if loop is None:  # not started: the running loop, and its pad
+            loop, pad = self._loop_and_pad()
+            return loop.time() + max(0.0, seconds) * self._loop_time_per_sim_second() + pad
+        if not seconds > 0.0:  # negative, or NaN: now
+            seconds = 0.0
+        return loop.time() + seconds * self._loop_time_per_sim_second() + self._pad
 
     def loop_deadline_at(self, t: float) -> float:
         """The event-loop time to arm a timer for simulated instant ``t``.

@@ -202,9 +202,8 @@ class Codec:
             StackMismatchError: a datagram from a robot with another stack.
             DecodeError: anything else wrong, with a ``reason`` for counters.
         """
-        if type(data) is not bytes:
-            data = bytes(data)  # a bytearray or memoryview
-        if len(data) > self.max_size or data[:PREFIX] != self._prefix:
+        # bytes, bytearray and memoryview all slice and compare alike: no conversion.
+        if data[:PREFIX] != self._prefix or len(data) > self.max_size:
             raise self._refused(data)
         try:
             msg: Message = self._decode(data[PREFIX:])

@@ -354,15 +354,19 @@ class LayerRuntime:
             raise RuleViolation(f"{self.log.prefix}request() to its own robot {robot_id}")
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
-        msg = owned(msg)
-        data = self.outbox.request(self.level, msg)
+        if msg.msg_id:  # owned(), inline: sent before, so a copy
+            msg = owned(msg)
+        outbox = self.outbox
+        data = outbox.request(self.level, msg)
         msg_id = msg.msg_id
+        seconds = self.layer.default_request_timeout if timeout is None else timeout
+        requests, deadline = self.requests, self.clock.loop_deadline
         attempt = 0
         while True:
             attempt += 1
-            waiting = self.expect(msg, robot_id, True, timeout)
+            waiting = requests.expect(msg, robot_id, True, seconds, deadline(seconds))
             try:
-                if not self.outbox.transmit(self.counters, robot_id, data, msg.__class__):
+                if not outbox.transmit(self.counters, robot_id, data, msg.__class__):
                     raise RobotGone(
                         f"{self.log.prefix}robot {robot_id} is not reachable (asked "
                         f"{type(msg).__name__} #{msg_id}, attempt {attempt})"
@@ -381,7 +385,7 @@ class LayerRuntime:
                     exc.peer, exc.attempts = robot_id, attempt
                     raise
             finally:
-                self.requests.forget(msg_id)
+                requests.forget(msg_id)
 
     async def request_layer(
         self,

@@ -286,14 +286,23 @@ class Outbox:
         with the kept bytes (:meth:`resend_reply`). An asker that left meanwhile is
         a dropped reply (``reply_undeliverable``), not an error.
         """
-        response = owned(response)  # a copy if sent before (or the request itself)
+        if response.msg_id:  # sent before (or the request itself): a copy
+            response = copy.copy(response)
         response.msg_id = next(self._ids)  # stamped inline: the hot path of answers
         response.robot_id = self.robot_id
         response.src_layer = response.dst_layer = level
         response.corr_id = request_id
         data = self._codec.encode(response)
         self._replies.keep(asker, request_id, data, self._now())
-        self.transmit(counters, asker, data, response.__class__, unknown="reply_undeliverable")
+        try:  # transmit(), inline
+            self._endpoint.send(asker, data)
+        except UnknownRobotError as exc:
+            self._drops.drop("reply_undeliverable", "%s: %s", type(response).__name__, exc)
+            return
+        counters.sent_external += 1
+        by_type = counters.external_by_type
+        kind = response.__class__
+        by_type[kind] = by_type.get(kind, 0) + 1
 
     def resend_reply(self, asker: RobotId, request_id: int) -> None:
         """Answers a repeated request with the reply kept for it, if any (not counted as sent)."""

@@ -179,7 +179,10 @@ class PendingRequests:
             self._drop("duplicate_reply", "%s answers a request already answered", reply)
             return ReplyOutcome.DROPPED
         waiter.future.set_result(reply)
-        _remember(self._answered, corr_id)
+        answered = self._answered  # _remember(), inline: every reply comes here
+        answered[corr_id] = None
+        if len(answered) > _MEMORY:
+            del answered[next(iter(answered))]
         return ReplyOutcome.DELIVERED
 
     def _expire(self, msg_id: int) -> None:
