@@ -130,6 +130,8 @@ _namespaces: weakref.WeakKeyDictionary[type, dict[str, Any]] = weakref.WeakKeyDi
 """Each class's namespace as written, so ``@message(name=...)`` can define it again."""
 _superseded: weakref.WeakSet[type] = weakref.WeakSet()
 """Classes ``@message(name=...)`` defined again: no longer messages of anyone's stack."""
+_latest: weakref.WeakValueDictionary[tuple[str, str], type] = weakref.WeakValueDictionary()
+"""The newest class by full name and wire name: a class defined again supersedes the old one."""
 _defined: list[Any] = [0, ()]
 """How many classes were defined, and :func:`all_messages` as of then."""
 
@@ -165,7 +167,8 @@ class _MessageMeta(msgspec.StructMeta):
         qualname = namespace.get("__qualname__", cls_name)
         for clash in sorted(set(namespace.get("__annotations__", {})) & set(HEADER_FIELDS)):
             raise MessageDefinitionError(f"{qualname}.{clash}: the name is taken by the header")
-        name = wire_name or f"{_module_name(namespace.get('__module__', ''))}.{qualname}"
+        full_name = f"{_module_name(namespace.get('__module__', ''))}.{qualname}"
+        name = wire_name or full_name
         tag = options.pop("tag", None)
         if tag is None:
             tag = _tag_of(name)
@@ -189,6 +192,10 @@ class _MessageMeta(msgspec.StructMeta):
         _defined[0] += 1
         _names[cls] = name
         _namespaces[cls] = kept
+        older = _latest.get((full_name, name))
+        if older is not None:  # the module was run again: the new class takes the name over
+            _superseded.add(older)
+        _latest[(full_name, name)] = cls
         return cls
 
 
