@@ -187,7 +187,7 @@ class Codec:
             raise EncodeError(self._not_ours(msg))
         try:
             data = self._prefix + self._encode(msg)
-        except (TypeError, ValueError, OverflowError, msgspec.EncodeError) as exc:
+        except (TypeError, ValueError, OverflowError, RecursionError, msgspec.EncodeError) as exc:
             raise EncodeError(f"cannot encode {_named(msg)}: {_which_field(msg)}{exc}") from exc
         if len(data) > self.max_size:
             raise EncodeError(
@@ -322,7 +322,7 @@ def _which_field(msg: Message) -> str:
     for name in type(msg).__struct_fields__:
         try:
             encode(getattr(msg, name))
-        except (TypeError, ValueError, OverflowError, msgspec.EncodeError):
+        except (TypeError, ValueError, OverflowError, RecursionError, msgspec.EncodeError):
             return f"field {name!r}: "
     return ""
 
