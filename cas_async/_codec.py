@@ -66,6 +66,7 @@ _FINITE: Final = re.compile(
 )
 """How msgspec words a bound of :data:`~cas_async.Finite` (said "a finite float" instead)."""
 _BOUND: Final = re.compile(r"^Expected `\w+` (>=|<=|>|<) ")
+_ARITY: Final = re.compile(r"^Expected `array` of (at least |at most )?length \d+, got \d+$")
 _ARRAY_HEADS: Final = frozenset(range(0x90, 0xA0)) | {0xDC, 0xDD}
 """First bytes of a msgpack array: what follows a fingerprint in any stack's datagram."""
 _RAW_ITEMS: Final = msgspec.msgpack.Decoder(list[msgspec.Raw])
@@ -254,8 +255,10 @@ class Codec:
             except (msgspec.DecodeError, RecursionError):  # it claims more than there is
                 return DecodeError(f"malformed: {text}", "malformed")
             cls = self._class_of(data)
-            if cls is None or "length" not in text:  # pragma: no cover - msgspec read its tag
+            if cls is None:  # pragma: no cover - msgspec read its tag
                 return DecodeError(f"not a datagram: {text}", "bad_header")
+            if _ARITY.match(text) is None:  # the class refused its values: its __post_init__
+                return DecodeError(f"{cls.__name__}: {text}", "wrong_type")
             fields = len(cls.__struct_fields__)
             return DecodeError(
                 f"{cls.__name__}: {text}: {len(items)} items for the tag, "
