@@ -60,7 +60,7 @@ _SHARED_CODECS: Final = 32
 
 _per_thread: Final = threading.local()
 
-_PATH: Final = re.compile(r" - at `\$\[(\d+)\]([^`]*)`$")
+_PATH: Final = re.compile(r" - at (`key` in )?`\$\[(\d+)\]([^`]*)`$")
 _FINITE: Final = re.compile(
     "`float` (>= |<= )" + re.escape(repr(sys.float_info.max)).replace("1", "-?1", 1)
 )
@@ -265,7 +265,7 @@ class Codec:
                 f"{fields - len(HEADER_FIELDS)} fields and {len(HEADER_FIELDS)} header values",
                 "wrong_arity",
             )
-        index = int(found.group(1))
+        index = int(found.group(2))
         if index == 0:
             return DecodeError(f"unknown message tag: {text}", "unknown_type")
         cls = self._class_of(data)
@@ -274,7 +274,8 @@ class Codec:
         names = cls.__struct_fields__
         field = names[index - 1] if index - 1 < len(names) else "?"
         problem = _FINITE.sub("a finite `float`", text[: found.start()])
-        where = f"{cls.__name__}.{field}{found.group(2)}: {problem}"
+        key = " key" if found.group(1) else ""  # a dict's key, not its value
+        where = f"{cls.__name__}.{field}{found.group(3)}{key}: {problem}"
         if field in HEADER_FIELDS:
             return DecodeError(f"bad header: {where}", "bad_header")
         return DecodeError(where, "out_of_range" if _BOUND.match(text) else "wrong_type")
