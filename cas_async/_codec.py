@@ -25,7 +25,7 @@ import re
 import sys
 import threading
 from collections.abc import Iterable
-from typing import Any, Final, Union
+from typing import Any, Final, Union, get_origin
 
 import msgspec
 import numpy as np
@@ -354,8 +354,8 @@ def _decode_custom(kind: type, value: Any) -> Any:
     Nothing is allocated for the array until the bytes present are exactly what
     the dtype and shape need: a datagram claiming 10**9 elements costs nothing.
     """
-    if kind is not np.ndarray:  # pragma: no cover - message classes refuse other custom types
-        raise TypeError(f"no decoder for {kind.__qualname__}")
+    if (get_origin(kind) or kind) is not np.ndarray:  # pragma: no cover - refused earlier
+        raise TypeError(f"no decoder for {kind!r}")
     if not (isinstance(value, list) and len(value) == 3):
         raise TypeError("expected an ndarray as [dtype, shape, data]")
     dtype_text, shape, data = value
