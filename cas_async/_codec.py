@@ -65,7 +65,10 @@ _FINITE: Final = re.compile(
     "`float` (>= |<= )" + re.escape(repr(sys.float_info.max)).replace("1", "-?1", 1)
 )
 """How msgspec words a bound of :data:`~cas_async.Finite` (said "a finite float" instead)."""
-_BOUND: Final = re.compile(r"^Expected `\w+` (>=|<=|>|<) ")
+_BOUND: Final = re.compile(
+    r"^Expected `\w+` (of length )?(>=|<=|>|<) |^Expected `\w+` (matching regex|that's a multiple)"
+)
+"""How msgspec words the refusal of a bound (a range, a length, a pattern): ``out_of_range``."""
 _ARITY: Final = re.compile(r"^Expected `array` of (at least |at most )?length \d+, got \d+$")
 _ARRAY_HEADS: Final = frozenset(range(0x90, 0xA0)) | {0xDC, 0xDD}
 """First bytes of a msgpack array: what follows a fingerprint in any stack's datagram."""
