@@ -331,7 +331,7 @@ def all_messages() -> tuple[type[Message], ...]:
     while pending:
         cls = pending.pop()
         pending.extend(cls.__subclasses__())
-        if cls not in _superseded and not inspect.isabstract(cls):
+        if cls in _names and cls not in _superseded and not inspect.isabstract(cls):
             found.append(cls)
     classes = tuple(sorted(found, key=lambda c: (c.__struct_config__.tag, c.__qualname__)))
     _defined[1] = (count, classes)
