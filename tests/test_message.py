@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 import functools
+import gc
 import json
 import subprocess
 import sys
@@ -265,6 +266,19 @@ def test_a_bad_chosen_tag_is_refused(tag: Any) -> None:
     refused = rf"MsgBadTag: a tag is an int in \[0, {MAX_TAG}\], got {tag!r}"
     with pytest.raises(MessageDefinitionError, match=refused):
         message(type_id=tag)(cls)
+
+
+def test_a_refused_class_is_no_message_of_any_stack() -> None:
+    gc.disable()  # the refused class lives until a collection: keep it alive to look for it
+    try:
+        with pytest.raises(MessageDefinitionError):
+            type("MsgRefused", (Message,), {"__annotations__": {"v": complex}})
+        made = [c for c in Message.__subclasses__() if c.__qualname__ == "MsgRefused"]
+        assert made  # msgspec made the class before it was checked
+        assert not set(made) & set(all_messages())
+        assert Codec.for_stack(1).message_classes == frozenset(all_messages())
+    finally:
+        gc.enable()
 
 
 def test_all_messages_is_sorted_by_tag_and_sees_new_classes() -> None:
