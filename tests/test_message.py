@@ -319,11 +319,15 @@ class Empty(enum.Enum):
 @pytest.mark.parametrize(
     ("annotation", "shown"),
     [
-        pytest.param(Thing, "unsupported field type Thing", id="arbitrary-class"),
-        pytest.param(object, "unsupported field type object", id="object"),
-        pytest.param(complex, "unsupported field type complex", id="complex"),
-        pytest.param(list[complex], "unsupported field type complex", id="nested-unsupported"),
-        pytest.param(dict[str, Thing], "unsupported field type Thing", id="dict-of-class"),
+        pytest.param(Thing, "field 'bad': unsupported field type Thing", id="arbitrary-class"),
+        pytest.param(object, "field 'bad': unsupported field type object", id="object"),
+        pytest.param(complex, "field 'bad': unsupported field type complex", id="complex"),
+        pytest.param(
+            list[complex], "field 'bad': unsupported field type complex", id="nested-unsupported"
+        ),
+        pytest.param(
+            dict[str, Thing], "field 'bad': unsupported field type Thing", id="dict-of-class"
+        ),
         pytest.param(Empty, "at least one item", id="empty-enum"),
         pytest.param(
             Annotated[int, msgspec.Meta(ge=1), msgspec.Meta(ge=2)], "Multiple `Meta`", id="two-ge"
