@@ -131,7 +131,10 @@ _namespaces: weakref.WeakKeyDictionary[type, dict[str, Any]] = weakref.WeakKeyDi
 _superseded: weakref.WeakSet[type] = weakref.WeakSet()
 """Classes ``@message(name=...)`` defined again: no longer messages of anyone's stack."""
 _latest: weakref.WeakValueDictionary[tuple[str, str], type] = weakref.WeakValueDictionary()
-"""The newest class by full name and wire name: a class defined again supersedes the old one."""
+"""The newest class by where it is defined and wire name: one defined again supersedes the old.
+
+A module run with ``python -m`` and imported too is two modules (``__main__`` and its
+name): its classes stay two, and a stack of both is refused naming them."""
 _defined: list[Any] = [0, ()]
 """How many classes were defined, and :func:`all_messages` as of then."""
 
@@ -167,8 +170,8 @@ class _MessageMeta(msgspec.StructMeta):
         qualname = namespace.get("__qualname__", cls_name)
         for clash in sorted(set(namespace.get("__annotations__", {})) & set(HEADER_FIELDS)):
             raise MessageDefinitionError(f"{qualname}.{clash}: the name is taken by the header")
-        full_name = f"{_module_name(namespace.get('__module__', ''))}.{qualname}"
-        name = wire_name or full_name
+        module = namespace.get("__module__", "")
+        name = wire_name or f"{_module_name(module)}.{qualname}"
         tag = options.pop("tag", None)
         if tag is None:
             tag = _tag_of(name)
@@ -192,10 +195,10 @@ class _MessageMeta(msgspec.StructMeta):
         _defined[0] += 1
         _names[cls] = name
         _namespaces[cls] = kept
-        older = _latest.get((full_name, name))
+        older = _latest.get((f"{module}.{qualname}", name))
         if older is not None:  # the module was run again: the new class takes the name over
             _superseded.add(older)
-        _latest[(full_name, name)] = cls
+        _latest[(f"{module}.{qualname}", name)] = cls
         return cls
 
 
