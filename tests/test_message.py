@@ -131,17 +131,28 @@ def test_a_module_run_with_python_m_names_its_classes_as_when_imported(tmp_path:
                 n: int
 
             if __name__ == "__main__":
-                print(json.dumps([wire_name(Ping), Ping.__struct_config__.tag]))
+                found = [wire_name(Ping), Ping.__struct_config__.tag]
+                import wirepkg.msgs  # the same module once more: two classes of one name
+                from cas_async import MessageDefinitionError
+                from cas_async.transport import Codec
+                try:
+                    Codec.for_stack(1)
+                except MessageDefinitionError as exc:
+                    found.append(str(exc))
+                print(json.dumps(found))
             """
         )
     )
-    run = python("", "-m", "wirepkg.msgs", cwd=tmp_path)
+    name, tag, refused = python("", "-m", "wirepkg.msgs", cwd=tmp_path)
     imported = python(
         "import json; from wirepkg.msgs import Ping; from cas_async._message import wire_name\n"
         "print(json.dumps([wire_name(Ping), Ping.__struct_config__.tag]))",
         cwd=tmp_path,
     )
-    assert run == imported == ["wirepkg.msgs.Ping", crc("wirepkg.msgs.Ping")]
+    assert [name, tag] == imported == ["wirepkg.msgs.Ping", crc("wirepkg.msgs.Ping")]
+    assert "have one tag" in refused
+    assert "__main__.Ping" in refused
+    assert "wirepkg.msgs.Ping and" in refused or "and wirepkg.msgs.Ping" in refused
 
 
 @functools.cache
