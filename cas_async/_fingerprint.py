@@ -3,9 +3,11 @@
 A fingerprint summarises what a robot's datagrams mean: how many layers its stack
 has and, for every message class, its tag, its wire name and the wire schema of
 its fields as msgspec describes it (:func:`msgspec.inspect.type_info`): types,
-bounds, enum values, nested structs. Two processes that define the same classes
-compute the same fingerprint, whatever the modules are called there (a class
-defined in ``__main__`` in one process and imported in another).
+bounds, enum values, nested structs. Two processes that import the same classes
+compute the same fingerprint, whatever order they import them in; a module run
+with ``python -m pkg.mod`` counts as ``pkg.mod``. A script run by its path names
+its classes ``__main__.X``: a process that imports it instead has other tags, so
+another fingerprint, unless the classes are named with ``@message(name=...)``.
 """
 
 from __future__ import annotations
