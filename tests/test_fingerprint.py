@@ -99,6 +99,47 @@ def test_the_fingerprint_is_the_same_in_another_process() -> None:
     assert json.loads(done.stdout) == ours
 
 
+SCRIPT = """
+import json
+from cas_async import Message, message
+from cas_async.transport import Codec
+
+@message(name="fp-test.Ping")
+class Ping(Message):
+    n: int
+
+class Pong(Message):
+    n: int
+
+if __name__ == "__main__":
+    print(json.dumps([Codec.for_stack(2, [Ping]).fingerprint,
+                      Codec.for_stack(2, [Pong]).fingerprint]))
+"""
+
+
+def test_a_script_run_by_its_path_agrees_with_its_importers_on_named_classes(
+    tmp_path: Path,
+) -> None:
+    (tmp_path / "fp_script.py").write_text(SCRIPT)
+
+    def run(*argv: str) -> list[int]:
+        done = subprocess.run(
+            [sys.executable, *argv], cwd=tmp_path, capture_output=True, text=True, timeout=120
+        )
+        assert done.returncode == 0, done.stderr
+        found: list[int] = json.loads(done.stdout)
+        return found
+
+    script = run("fp_script.py")  # its classes are __main__.Ping and __main__.Pong
+    imported = run(
+        "-c",
+        "import json, fp_script as m\nfrom cas_async.transport import Codec\n"
+        "print(json.dumps([Codec.for_stack(2, [c]).fingerprint for c in (m.Ping, m.Pong)]))",
+    )
+    assert script[0] == imported[0]  # named: the same tag wherever it is defined
+    assert script[1] != imported[1]  # __main__.Pong against fp_script.Pong
+
+
 # --- one codec per stack and thread ------------------------------------------------------------
 
 
