@@ -25,7 +25,7 @@ import re
 import sys
 import threading
 from collections.abc import Iterable
-from typing import Any, Final, Union
+from typing import Any, Final, Union, get_origin
 
 import msgspec
 import numpy as np
@@ -60,12 +60,16 @@ _SHARED_CODECS: Final = 32
 
 _per_thread: Final = threading.local()
 
-_PATH: Final = re.compile(r" - at `\$\[(\d+)\]([^`]*)`$")
+_PATH: Final = re.compile(r" - at (`key` in )?`\$\[(\d+)\]([^`]*)`$")
 _FINITE: Final = re.compile(
     "`float` (>= |<= )" + re.escape(repr(sys.float_info.max)).replace("1", "-?1", 1)
 )
 """How msgspec words a bound of :data:`~cas_async.Finite` (said "a finite float" instead)."""
-_BOUND: Final = re.compile(r"^Expected `\w+` (>=|<=|>|<) ")
+_BOUND: Final = re.compile(
+    r"^Expected `\w+` (of length )?(>=|<=|>|<) |^Expected `\w+` (matching regex|that's a multiple)"
+)
+"""How msgspec words the refusal of a bound (a range, a length, a pattern): ``out_of_range``."""
+_ARITY: Final = re.compile(r"^Expected `array` of (at least |at most )?length \d+, got \d+$")
 _ARRAY_HEADS: Final = frozenset(range(0x90, 0xA0)) | {0xDC, 0xDD}
 """First bytes of a msgpack array: what follows a fingerprint in any stack's datagram."""
 _RAW_ITEMS: Final = msgspec.msgpack.Decoder(list[msgspec.Raw])
@@ -187,7 +191,7 @@ class Codec:
             raise EncodeError(self._not_ours(msg))
         try:
             data = self._prefix + self._encode(msg)
-        except (TypeError, ValueError, OverflowError, msgspec.EncodeError) as exc:
+        except (TypeError, ValueError, OverflowError, RecursionError, msgspec.EncodeError) as exc:
             raise EncodeError(f"cannot encode {_named(msg)}: {_which_field(msg)}{exc}") from exc
         if len(data) > self.max_size:
             raise EncodeError(
@@ -213,6 +217,8 @@ class Codec:
             raise self._invalid(str(exc), data) from None
         except msgspec.DecodeError as exc:
             raise DecodeError(f"malformed: {exc}", "malformed") from None
+        except UnicodeDecodeError as exc:  # msgspec raises it as it is for a str of bad UTF-8
+            raise DecodeError(f"malformed: a str is not UTF-8: {exc.reason}", "malformed") from None
         except RecursionError:  # bare list/dict fields or recursive messages, nested deeply
             raise DecodeError("values nest too deeply", "wrong_type") from None
         except Exception as exc:  # a __post_init__ or hook's oversight must not reach a robot
@@ -253,15 +259,17 @@ class Codec:
             except (msgspec.DecodeError, RecursionError):  # it claims more than there is
                 return DecodeError(f"malformed: {text}", "malformed")
             cls = self._class_of(data)
-            if cls is None or "length" not in text:  # pragma: no cover - msgspec read its tag
+            if cls is None:  # pragma: no cover - msgspec read its tag
                 return DecodeError(f"not a datagram: {text}", "bad_header")
+            if _ARITY.match(text) is None:  # the class refused its values: its __post_init__
+                return DecodeError(f"{cls.__name__}: {text}", "wrong_type")
             fields = len(cls.__struct_fields__)
             return DecodeError(
                 f"{cls.__name__}: {text}: {len(items)} items for the tag, "
                 f"{fields - len(HEADER_FIELDS)} fields and {len(HEADER_FIELDS)} header values",
                 "wrong_arity",
             )
-        index = int(found.group(1))
+        index = int(found.group(2))
         if index == 0:
             return DecodeError(f"unknown message tag: {text}", "unknown_type")
         cls = self._class_of(data)
@@ -270,7 +278,8 @@ class Codec:
         names = cls.__struct_fields__
         field = names[index - 1] if index - 1 < len(names) else "?"
         problem = _FINITE.sub("a finite `float`", text[: found.start()])
-        where = f"{cls.__name__}.{field}{found.group(2)}: {problem}"
+        key = " key" if found.group(1) else ""  # a dict's key, not its value
+        where = f"{cls.__name__}.{field}{found.group(3)}{key}: {problem}"
         if field in HEADER_FIELDS:
             return DecodeError(f"bad header: {where}", "bad_header")
         return DecodeError(where, "out_of_range" if _BOUND.match(text) else "wrong_type")
@@ -321,7 +330,7 @@ def _which_field(msg: Message) -> str:
     for name in type(msg).__struct_fields__:
         try:
             encode(getattr(msg, name))
-        except (TypeError, ValueError, OverflowError, msgspec.EncodeError):
+        except (TypeError, ValueError, OverflowError, RecursionError, msgspec.EncodeError):
             return f"field {name!r}: "
     return ""
 
@@ -349,8 +358,8 @@ def _decode_custom(kind: type, value: Any) -> Any:
     Nothing is allocated for the array until the bytes present are exactly what
     the dtype and shape need: a datagram claiming 10**9 elements costs nothing.
     """
-    if kind is not np.ndarray:  # pragma: no cover - message classes refuse other custom types
-        raise TypeError(f"no decoder for {kind.__qualname__}")
+    if (get_origin(kind) or kind) is not np.ndarray:  # pragma: no cover - refused earlier
+        raise TypeError(f"no decoder for {kind!r}")
     if not (isinstance(value, list) and len(value) == 3):
         raise TypeError("expected an ndarray as [dtype, shape, data]")
     dtype_text, shape, data = value

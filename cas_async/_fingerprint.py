@@ -3,9 +3,11 @@
 A fingerprint summarises what a robot's datagrams mean: how many layers its stack
 has and, for every message class, its tag, its wire name and the wire schema of
 its fields as msgspec describes it (:func:`msgspec.inspect.type_info`): types,
-bounds, enum values, nested structs. Two processes that define the same classes
-compute the same fingerprint, whatever the modules are called there (a class
-defined in ``__main__`` in one process and imported in another).
+bounds, enum values, nested structs. Two processes that import the same classes
+compute the same fingerprint, whatever order they import them in; a module run
+with ``python -m pkg.mod`` counts as ``pkg.mod``. A script run by its path names
+its classes ``__main__.X``: a process that imports it instead has other tags, so
+another fingerprint, unless the classes are named with ``@message(name=...)``.
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ def schema_text(cls: type[msgspec.Struct]) -> str:
     Raises:
         UnsupportedField: a field holds a class no codec carries (not a Struct,
             an enum, a builtin type or a numpy array).
+        ValueError: a field's bounds leave no value (``ge=2, le=1``).
     """
     info = mi.type_info(cls)
     return _render(info, set())
@@ -71,7 +74,7 @@ def _render(node: Any, seen: set[int]) -> str:
         if id(node) in seen:
             return f"{node.cls.__name__}..."
         seen = seen | {id(node)}
-        fields = ",".join(f"{f.name}:{_render(f.type, seen)}" for f in node.fields)
+        fields = ",".join(f"{f.name}:{_field(f, seen)}" for f in node.fields)
         return f"{node.cls.__name__}<{node.tag!r},{int(node.array_like)}>({fields})"
     if isinstance(node, mi.Type):
         parts = [
@@ -79,8 +82,33 @@ def _render(node: Any, seen: set[int]) -> str:
             for name in node.__struct_fields__
             if getattr(node, name) not in (None, ())
         ]
-        return f"{type(node).__name__.removesuffix('Type')}({','.join(parts)})"
+        text = f"{type(node).__name__.removesuffix('Type')}({','.join(parts)})"
+        if _admits_nothing(node):
+            raise ValueError(f"the bounds of {text} leave no value")
+        return text
     return _value(node, seen)
+
+
+def _field(field: mi.Field, seen: set[int]) -> str:
+    """A struct field's schema; an error about it names the field."""
+    try:
+        return _render(field.type, seen)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"field {field.name!r}: {exc}") from None
+
+
+def _admits_nothing(node: Any) -> bool:
+    """Bounds no value meets: ``ge=2, le=1``, ``gt=1, lt=1``, ``min_length=3, max_length=2``."""
+    if isinstance(node, mi.IntType | mi.FloatType):
+        low = node.ge if node.gt is None else node.gt
+        high = node.le if node.lt is None else node.lt
+        if low is None or high is None:
+            return False
+        if isinstance(node, mi.IntType):  # whole numbers only
+            return low + (node.gt is not None) > high - (node.lt is not None)
+        return low > high or (low == high and (node.gt is not None or node.lt is not None))
+    shortest, longest = getattr(node, "min_length", None), getattr(node, "max_length", None)
+    return shortest is not None and longest is not None and shortest > longest
 
 
 def _value(value: Any, seen: set[int]) -> str:

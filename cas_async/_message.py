@@ -130,6 +130,11 @@ _namespaces: weakref.WeakKeyDictionary[type, dict[str, Any]] = weakref.WeakKeyDi
 """Each class's namespace as written, so ``@message(name=...)`` can define it again."""
 _superseded: weakref.WeakSet[type] = weakref.WeakSet()
 """Classes ``@message(name=...)`` defined again: no longer messages of anyone's stack."""
+_latest: weakref.WeakValueDictionary[tuple[str, str], type] = weakref.WeakValueDictionary()
+"""The newest class by where it is defined and wire name: one defined again supersedes the old.
+
+A module run with ``python -m`` and imported too is two modules (``__main__`` and its
+name): its classes stay two, and a stack of both is refused naming them."""
 _defined: list[Any] = [0, ()]
 """How many classes were defined, and :func:`all_messages` as of then."""
 
@@ -165,7 +170,8 @@ class _MessageMeta(msgspec.StructMeta):
         qualname = namespace.get("__qualname__", cls_name)
         for clash in sorted(set(namespace.get("__annotations__", {})) & set(HEADER_FIELDS)):
             raise MessageDefinitionError(f"{qualname}.{clash}: the name is taken by the header")
-        name = wire_name or f"{_module_name(namespace.get('__module__', ''))}.{qualname}"
+        module = namespace.get("__module__", "")
+        name = wire_name or f"{_module_name(module)}.{qualname}"
         tag = options.pop("tag", None)
         if tag is None:
             tag = _tag_of(name)
@@ -189,6 +195,10 @@ class _MessageMeta(msgspec.StructMeta):
         _defined[0] += 1
         _names[cls] = name
         _namespaces[cls] = kept
+        older = _latest.get((f"{module}.{qualname}", name))
+        if older is not None:  # the module was run again: the new class takes the name over
+            _superseded.add(older)
+        _latest[(f"{module}.{qualname}", name)] = cls
         return cls
 
 
@@ -324,7 +334,7 @@ def all_messages() -> tuple[type[Message], ...]:
     while pending:
         cls = pending.pop()
         pending.extend(cls.__subclasses__())
-        if cls not in _superseded and not inspect.isabstract(cls):
+        if cls in _names and cls not in _superseded and not inspect.isabstract(cls):
             found.append(cls)
     classes = tuple(sorted(found, key=lambda c: (c.__struct_config__.tag, c.__qualname__)))
     _defined[1] = (count, classes)

@@ -1,11 +1,11 @@
 """Decoding hostile datagrams allocates a bounded amount of memory, measured with tracemalloc.
 
 Each worst case below is a datagram of at most ``max_size`` bytes that claims far
-more than it holds, or that packs as many Python objects as bytes allow. The peak
-of traced memory during ``Codec.decode`` must stay under the documented bound,
-``Codec.max_decode_bytes``, computed for a codec whose ``max_size`` is the length
-of the datagram (the bound grows with the bytes a datagram actually has). Run with
-``-s`` to see the peaks.
+more than it holds, or that packs as many Python objects as its bytes allow. The
+peak of traced memory during ``Codec.decode`` must stay under the documented bound,
+``Codec.max_decode_bytes``, computed for a codec whose ``max_size`` is the length of
+the datagram (the bound grows with the bytes a datagram actually has). Run with
+``-s`` to see the peaks and the bytes allocated per datagram byte.
 """
 
 from __future__ import annotations
@@ -16,90 +16,91 @@ import tracemalloc
 from typing import Any
 
 import msgpack
+import msgspec
 import numpy as np
 import pytest
-from cas_async._datagram import MAX_NESTING
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cas_async import DecodeError, Message, MsgType, message, spec_of
+from cas_async import DecodeError, Message
 from cas_async._codec import MIN_DATAGRAM
-from cas_async._message import specs_for
-from cas_async.transport import Codec, stack_fingerprint
+from cas_async.transport import Codec
+from tests.wire import tag_of
 
 
-@message
 class LimInts(Message):
     v: list[int]
 
 
-@message
 class LimText(Message):
     v: str
 
 
-@message
 class LimBlob(Message):
     v: bytes
 
 
-@message
 class LimBareList(Message):
     v: list  # type: ignore[type-arg]
 
 
-@message
 class LimBareDict(Message):
     v: dict  # type: ignore[type-arg]
 
 
-@message
 class LimTable(Message):
     v: dict[str, list[int]]
 
 
-@message
 class LimArray(Message):
     v: np.ndarray  # type: ignore[type-arg]
 
 
-@message
+class LimArrays(Message):
+    v: list[np.ndarray]  # type: ignore[type-arg]
+
+
 class LimPoint(Message):
     x: float
     y: float
 
 
-@message
 class LimPath(Message):
     v: list[LimPoint]
 
 
-SPECS = specs_for(
-    [LimInts, LimText, LimBlob, LimBareList, LimBareDict, LimTable, LimArray, LimPoint, LimPath]
-)
-FP = stack_fingerprint(2, SPECS)
-CODEC = Codec(SPECS, FP)
+class LimVec(msgspec.Struct):
+    x: float = 0.0
+    y: float = 0.0
+
+
+class LimVecs(Message):
+    v: list[LimVec]
+
+
+CLASSES = [
+    LimInts,
+    LimText,
+    LimBlob,
+    LimBareList,
+    LimBareDict,
+    LimTable,
+    LimArray,
+    LimArrays,
+    LimPath,
+    LimVecs,
+]
+CODEC = Codec.for_stack(2, [*CLASSES, LimPoint])
 MAX = CODEC.max_size
-HEADER = (7, int(MsgType.ACCEPT), 3, 1, 1, 0)  # msg_id, msg_type, robot_id, src, dst, corr
+HEADER = b"".join(msgpack.packb(x) for x in (1, 7, 3, 1, 1, 0))  # msg_type, msg_id, ...
 
 
-def head(
-    cls: type[Message], *, fp: bytes | None = None, tid: bytes | None = None, ids: bytes = b""
+def datagram(
+    cls: type[Message], raw_field: bytes, *, tag: bytes | None = None, codec: Codec = CODEC
 ) -> bytes:
-    """The start of a one-field datagram: array header, fingerprint, type id, header.
-
-    ``fp``, ``tid`` and ``ids`` replace the packed fingerprint, type id and first
-    header fields with raw bytes.
-    """
-    fp = msgpack.packb(FP) if fp is None else fp
-    tid = msgpack.packb(spec_of(cls).type_id) if tid is None else tid
-    header = ids + b"".join(msgpack.packb(x) for x in (HEADER[1:] if ids else HEADER))
-    return b"\x99" + fp + tid + header
-
-
-def datagram(cls: type[Message], raw_field: bytes) -> bytes:
-    """A datagram whose one field is raw msgpack bytes (which packb cannot make)."""
-    return head(cls) + raw_field
+    """A one-field datagram whose field is raw msgpack (which packb cannot make)."""
+    tag = msgpack.packb(tag_of(cls)) if tag is None else tag
+    return codec.fingerprint.to_bytes(4, "big") + b"\x98" + tag + raw_field + HEADER
 
 
 def array_header(count: int) -> bytes:
@@ -118,15 +119,10 @@ def map_header(count: int) -> bytes:
     return b"\xdf" + struct.pack(">I", count)
 
 
-def filled(cls: type[Message], item: bytes, *, size: int = MAX) -> bytes:
-    """A datagram of about ``size`` bytes whose field is an array of copies of ``item``."""
-    count = (size - len(head(cls)) - 5) // len(item)
-    return datagram(cls, array_header(count) + item * count)
-
-
-def filled_chains(cls: type[Message], link: bytes, end: bytes, depth: int) -> bytes:
-    """An array of values nested ``depth`` deep (``link * depth + end``), as many as fit."""
-    return filled(cls, link * depth + end)
+def filled(cls: type[Message], item: bytes, codec: Codec = CODEC) -> bytes:
+    """The largest datagram whose field is an array of copies of ``item``."""
+    count = (MAX - len(datagram(cls, b"")) - 5) // len(item)
+    return datagram(cls, array_header(count) + item * count, codec=codec)
 
 
 def padded(cls: type[Message], raw_field: bytes) -> bytes:
@@ -136,7 +132,7 @@ def padded(cls: type[Message], raw_field: bytes) -> bytes:
 
 
 def ndarray(dtype: str, shape: Any, data: bytes) -> bytes:
-    return msgpack.packb([dtype, shape, data], use_bin_type=True)
+    return msgpack.packb([dtype, shape, data])
 
 
 def peak_of_decode(codec: Codec, data: bytes) -> tuple[int, Message | DecodeError]:
@@ -156,160 +152,136 @@ def peak_of_decode(codec: Codec, data: bytes) -> tuple[int, Message | DecodeErro
     return peak, outcome
 
 
-def bound_for(data: bytes) -> int:
+def bound_for(data: bytes, classes: list[type[Message]] = CLASSES) -> int:
     """The documented bound for a datagram of this length."""
-    return Codec(SPECS, FP, max(MIN_DATAGRAM, len(data))).max_decode_bytes
+    return Codec.for_stack(2, classes, max(MIN_DATAGRAM, len(data))).max_decode_bytes
 
 
-DEEP = 900  # below the nesting the structure check allows (about 990), so it is all read
-SHALLOW = 400  # what the converters of bare list/dict fields still take (recursion limit)
+def report(data: bytes, peak: int, outcome: object) -> None:
+    what = getattr(outcome, "reason", type(outcome).__name__)
+    print(f"\n  {len(data):6} B  peak {peak:11,}  {peak / len(data):6.1f} B/B  {what}")
+
+
+DEEP = 900  # nested below the recursion limit: all of it is read
 
 REFUSED = [
-    # Lengths that the bytes cannot back.
-    pytest.param(b"\xdd\xff\xff\xff\xff" + b"\x00" * 64, "malformed", id="datagram-array32-2**32"),
-    pytest.param(b"\xdf\xff\xff\xff\xff" + b"\x00" * 64, "malformed", id="datagram-map32-2**32"),
-    pytest.param(padded(LimInts, array_header(2**32 - 1)), "malformed", id="array32-2**32"),
-    pytest.param(padded(LimBareDict, map_header(2**32 - 1)), "malformed", id="map32-2**32"),
-    pytest.param(padded(LimBlob, b"\xc6\xff\xff\xff\xff"), "malformed", id="bin32-4GiB"),
-    pytest.param(padded(LimBlob, b"\xc4\xff"), "malformed", id="bin8-255-of-0"),
-    pytest.param(padded(LimText, b"\xdb\xff\xff\xff\xff"), "malformed", id="str32-4GiB"),
-    pytest.param(padded(LimBareList, b"\xc9\xff\xff\xff\xff\x05"), "malformed", id="ext32-4GiB"),
-    # Arrays nested 1023 deep, each claiming more items than the datagram holds: the
-    # C unpacker reserves slots for each as it reads its header.
-    pytest.param(
-        padded(LimBareList, array_header(256) * 1023), "malformed", id="1023-open-arrays-of-256"
-    ),
-    pytest.param(
-        padded(LimBareList, array_header(257) * 1023), "malformed", id="1023-open-arrays-of-257"
-    ),
-    pytest.param(
-        padded(LimBareList, array_header(65535) * 1023), "malformed", id="1023-open-arrays-of-64Ki"
-    ),
-    pytest.param(
-        padded(LimBareDict, (map_header(65535) + b"\x00") * 1023),
-        "malformed",
-        id="1023-open-maps-of-64Ki",
-    ),
-    pytest.param(datagram(LimBareList, b"\x91" * 1100 + b"\x00"), "malformed", id="1100-deep"),
-    # The bound counts on msgpack keeping at most 1024 arrays open: 20000 would reserve
-    # 42 MB from 60 KB.
-    pytest.param(
-        padded(LimBareList, array_header(256) * 20000), "malformed", id="20000-open-arrays-of-256"
-    ),
+    # Lengths the bytes cannot back.
+    pytest.param(padded(LimInts, array_header(2**32 - 1)), "malformed", id="array-2**32"),
+    pytest.param(padded(LimBareDict, map_header(2**32 - 1)), "malformed", id="map-2**32"),
+    pytest.param(padded(LimBlob, b"\xc6\xff\xff\xff\xff"), "malformed", id="bin-4GiB"),
+    pytest.param(padded(LimText, b"\xdb\xff\xff\xff\xff"), "malformed", id="str-4GiB"),
+    pytest.param(padded(LimBareList, b"\x91\xc9\xff\xff\xff\xff\x05"), "malformed", id="ext-4GiB"),
+    pytest.param(padded(LimBareList, array_header(256) * 1023), "wrong_type", id="open-arrays"),
+    pytest.param(padded(LimBareList, array_header(65535) * 20000), "wrong_type", id="open-64Ki"),
+    pytest.param(padded(LimBareDict, (map_header(65535) + b"\x00") * 9000), "wrong_type", id="o-m"),
+    pytest.param(datagram(LimBareList, b"\x91" * 30000 + b"\x00"), "wrong_type", id="30000-deep"),
     # As many objects as bytes allow, in a field that does not take them.
     pytest.param(filled(LimInts, b"\x80"), "wrong_type", id="empty-maps-in-list[int]"),
-    pytest.param(filled_chains(LimInts, b"\x81\x00", b"\x00", DEEP), "wrong_type", id="map-chains"),
-    pytest.param(filled_chains(LimInts, b"\x91", b"\x00", DEEP), "wrong_type", id="array-chains"),
-    pytest.param(filled(LimInts, b"\x81\x00\x80"), "wrong_type", id="map-of-map"),
-    pytest.param(filled(LimInts, b"\xd4\x05\x00"), "wrong_type", id="ext-types"),
-    pytest.param(filled(LimInts, b"\xd6\xff\x00\x00\x00\x01"), "wrong_type", id="timestamps"),
-    pytest.param(filled(LimInts, b"\xa2ab"), "wrong_type", id="short-strings"),
-    pytest.param(filled(LimInts, b"\xa5a\xf0\x9f\x98\x80"), "wrong_type", id="wide-strings"),
-    pytest.param(filled(LimInts, b"\xca\x00\x00\x00\x01"), "wrong_type", id="floats"),
-    pytest.param(filled(LimInts, b"\x91\x00"), "wrong_type", id="one-item-arrays"),
+    pytest.param(filled(LimInts, b"\x90"), "wrong_type", id="empty-arrays-in-list[int]"),
+    pytest.param(filled(LimInts, b"\x91" * DEEP + b"\x00"), "wrong_type", id="array-chains"),
     pytest.param(filled(LimTable, b"\x80"), "wrong_type", id="empty-maps-in-dict-field"),
-    pytest.param(
-        datagram(LimInts, array_header(300) + b"\x80" * 300), "wrong_type", id="long-array-maps"
-    ),
-    pytest.param(
-        datagram(LimPath, array_header(16000) + b"\x93\x00\x00\x00" * 16000),
-        "wrong_type",
-        id="nested-messages-with-wrong-type-id",
-    ),
+    pytest.param(filled(LimPath, b"\x93\x00\x00\x00"), "wrong_type", id="points-of-unknown-tag"),
     # Fields that a lying converter would allocate for.
+    pytest.param(datagram(LimArray, ndarray("<f8", [10**9], b"\0" * 8)), "wrong_type", id="nd-1e9"),
+    pytest.param(datagram(LimArray, ndarray("<f8", [2**64 - 1] * 32, b"")), "wrong_type", id="nd"),
+    pytest.param(datagram(LimArray, ndarray("<f8", [0] * 60000, b"")), "wrong_type", id="nd-dims"),
     pytest.param(
-        datagram(LimArray, ndarray("<f8", [10**9], b"\x00" * 8)), "wrong_type", id="shape-10**9"
+        datagram(LimArray, ndarray("<f8", [7000], b"\0" * 60000)), "wrong_type", id="nd-short"
+    ),
+    # Deep values under a tag, and in error paths.
+    pytest.param(
+        datagram(LimInts, b"\x90", tag=b"\x91" * DEEP + b"\x00"), "unknown_type", id="deep-tag"
     ),
     pytest.param(
-        datagram(LimArray, ndarray("<f8", [2**64 - 1] * 32, b"")), "wrong_type", id="shape-32-dims"
-    ),
-    pytest.param(
-        datagram(LimArray, ndarray("<f8", [0, 2**62, 2**62], b"")), "wrong_type", id="shape-0-huge"
-    ),
-    pytest.param(
-        datagram(LimArray, ndarray("<f8", [7000], b"\x00" * 60000)), "wrong_type", id="shape-short"
-    ),
-    pytest.param(
-        datagram(LimArray, ndarray("<f8", [0] * 60000, b"")), "wrong_type", id="shape-60000-dims"
-    ),
-    # Deep values in error messages and paths.
-    pytest.param(
-        datagram(
-            LimBareDict,
-            b"\x81" + msgpack.packb("k" * 30000) + b"\x81\xa0" * 450 + b"\xd4\x05\x00",
-        ),
-        "wrong_type",
-        id="deep-bare-dict-under-a-30KB-key",
-    ),
-    pytest.param(
-        head(LimInts, tid=b"\x91" * DEEP + b"\x00") + b"\x90",
-        "unknown_type",
-        id="type-id-1000-deep",
-    ),
-    pytest.param(
-        head(LimInts, ids=b"\x91" * DEEP + b"\x00") + b"\x90",
-        "bad_header",
-        id="msg-id-1000-deep",
-    ),
-    pytest.param(
-        head(LimInts, fp=msgpack.packb("f" * 60000)) + b"\x90",
-        "bad_header",
-        id="fingerprint-60KB-string",
+        datagram(LimBareDict, b"\x81" + msgpack.packb("k" * 30000) + b"\x81\xa0" * 450 + b"\xc1"),
+        "malformed",
+        id="deep-map-under-a-30KB-key",
     ),
 ]
 
 
 @pytest.mark.parametrize(("data", "reason"), REFUSED)
-def test_hostile_datagram_is_refused_within_the_memory_bound(data: bytes, reason: str) -> None:
+def test_a_hostile_datagram_is_refused_within_the_memory_bound(data: bytes, reason: str) -> None:
     assert len(data) <= MAX
     peak, outcome = peak_of_decode(CODEC, data)
-    bound = bound_for(data)
-    print(f"\n  {len(data):6} bytes  peak {peak:11,}  bound {bound:11,}  {outcome}"[:160])
+    report(data, peak, outcome)
     assert isinstance(outcome, DecodeError)
     assert outcome.reason == reason
-    assert len(str(outcome)) < 1000  # error messages quote hostile values briefly
-    assert peak <= bound
+    assert len(str(outcome)) < 1000  # hostile values are quoted briefly, if at all
+    assert peak <= bound_for(data)
 
 
 ACCEPTED = [
+    # The worst known: a container object for every byte or two of a bare field.
     pytest.param(filled(LimBareList, b"\x80"), id="empty-maps-in-bare-list"),
-    pytest.param(filled_chains(LimBareList, b"\x81\x00", b"\x00", SHALLOW), id="map-chains"),
-    pytest.param(filled_chains(LimBareList, b"\x91", b"\x00", SHALLOW), id="array-chains"),
-    pytest.param(filled_chains(LimBareList, b"\x81\x00", b"\x00", 50), id="many-map-chains"),
-    pytest.param(filled_chains(LimBareList, b"\x91", b"\x00", 50), id="many-array-chains"),
-    pytest.param(filled(LimBareList, b"\x91\x80"), id="maps-in-arrays"),
-    pytest.param(filled(LimInts, b"\xd0\x80"), id="ints"),
-    pytest.param(
-        filled(LimPath, b"\x93" + msgpack.packb(spec_of(LimPoint).type_id) + b"\x00\x00"),
-        id="nested-messages",
-    ),
+    pytest.param(filled(LimBareList, b"\x90"), id="empty-arrays-in-bare-list"),
+    pytest.param(filled(LimBareList, b"\x81\x00" * 400 + b"\x80"), id="map-chains"),
+    pytest.param(filled(LimBareList, b"\x81\xc0" * 3 + b"\x00"), id="short-map-chains"),
+    pytest.param(filled(LimBareList, b"\x91" * DEEP + b"\x00"), id="array-chains"),
+    pytest.param(filled(LimBareList, b"\x91\x90"), id="arrays-of-empty-arrays"),
     pytest.param(
         datagram(
             LimBareDict,
-            map_header(16000) + b"".join(msgpack.packb(i) + b"\x80" for i in range(1000, 17000)),
+            map_header(13000) + b"".join(msgpack.packb(i) + b"\x90" for i in range(13000)),
         ),
-        id="map-of-16000-empty-maps",
+        id="empty-arrays-in-bare-dict",
     ),
-    pytest.param(
-        datagram(LimBareDict, b"\x81" + msgpack.packb("k" * 30000) + b"\x81\xa0" * 450 + b"\x00"),
-        id="deep-bare-dict-under-a-30KB-key",
-    ),
+    pytest.param(filled(LimBareList, b"\xd4\x05\x00"), id="ext-values"),
+    pytest.param(filled(LimBareList, b"\xa1a"), id="short-strings"),
+    pytest.param(filled(LimVecs, b"\x80"), id="structs-all-defaults"),
+    pytest.param(filled(LimArrays, b"\x93\xa2b1\x90\xc4\x01\x00"), id="zero-dim-ndarrays"),
+    pytest.param(filled(LimPath, b"\x93" + msgpack.packb(tag_of(LimPoint)) + b"\x00\x00"), id="p"),
+    pytest.param(filled(LimInts, b"\xd0\x80"), id="ints"),
+    # The largest values of a kind.
+    pytest.param(datagram(LimText, msgpack.packb("é" * 32000)), id="long-string"),
     pytest.param(datagram(LimBlob, msgpack.packb(b"x" * 65000)), id="bytes"),
     pytest.param(datagram(LimArray, ndarray("<f8", [8000], b"\x01" * 64000)), id="ndarray"),
 ]
 
 
 @pytest.mark.parametrize("data", ACCEPTED)
-def test_largest_valid_datagrams_stay_within_the_memory_bound(data: bytes) -> None:
+def test_the_largest_valid_datagrams_stay_within_the_memory_bound(data: bytes) -> None:
     assert len(data) <= MAX
     peak, outcome = peak_of_decode(CODEC, data)
-    bound = bound_for(data)
-    print(
-        f"\n  {len(data):6} bytes  peak {peak:11,}  bound {bound:11,}  "
-        f"{peak / len(data):5.1f} B/B  {type(outcome).__name__}"
-    )
+    report(data, peak, outcome)
     assert isinstance(outcome, Message)
-    assert peak <= bound
+    assert peak <= bound_for(data)
+
+
+class ManyDefaults(msgspec.Struct):
+    """A Struct a datagram can make from one byte (``{}``), however many fields it has."""
+
+    a: list[int] = msgspec.field(default_factory=list)
+    b: list[int] = msgspec.field(default_factory=list)
+    c: dict[str, int] = msgspec.field(default_factory=dict)
+    d: int = 0
+    e: int = 0
+    f: int = 0
+    g: int = 0
+
+
+class LimDefaults(Message):
+    v: list[ManyDefaults]
+
+
+@pytest.mark.xfail(
+    reason="the bound counts bytes, not the defaults a Struct adds per byte: about 270 B/B here "
+    "(see /work/notes/codec-tests.md); a fixed factor cannot bound every stack",
+    strict=True,
+)
+def test_structs_of_many_defaults_stay_within_the_memory_bound() -> None:
+    codec = Codec.for_stack(2, [LimDefaults])
+    data = filled(LimDefaults, b"\x80", codec)  # [{}, {}, ...]: a ManyDefaults each
+    peak, outcome = peak_of_decode(codec, data)
+    report(data, peak, outcome)
+    assert isinstance(outcome, LimDefaults)
+    assert peak <= bound_for(data, [LimDefaults])
+
+
+@pytest.mark.parametrize("size", [MIN_DATAGRAM, 1500, MAX])
+def test_the_bound_is_the_documented_formula(size: int) -> None:
+    assert Codec.for_stack(2, CLASSES, size).max_decode_bytes == 128 * size + 256 * 1024
+    assert CODEC.max_decode_bytes < 9 * 2**20  # the default: about 8.3 MiB
 
 
 # Pieces of msgpack that cost the most per byte, or lie about what follows.
@@ -321,7 +293,6 @@ TOKENS = [
     b"\x92\x00",  # [0, ...
     b"\x9f",  # 15 items follow
     array_header(256),
-    array_header(257),
     array_header(65535),
     array_header(2**32 - 1),
     map_header(65535),
@@ -341,35 +312,35 @@ TOKENS = [
     ndarray("<f8", [10**9], b""),
     ndarray("<f8", [1], b"\x00" * 8),
 ]
-CLASSES = [LimInts, LimText, LimBlob, LimBareList, LimBareDict, LimTable, LimArray, LimPath]
 
 
 @st.composite
 def hostile_datagrams(draw: st.DrawFn) -> bytes:
-    """A datagram header, then a random mix of tokens repeated up to ``max_size``."""
+    """A datagram's start, then a random mix of tokens repeated up to ``max_size``."""
     cls = draw(st.sampled_from(CLASSES))
     body = b"".join(draw(st.lists(st.sampled_from(TOKENS), min_size=1, max_size=30)))
-    room = MAX - len(head(cls))
+    room = MAX - len(datagram(cls, b""))
     repeat = draw(st.integers(1, max(1, room // len(body))))
     return datagram(cls, body * repeat)[:MAX]
 
 
 @st.composite
 def random_datagrams(draw: st.DrawFn) -> bytes:
-    """Random bytes of up to ``max_size``, alone or after a valid header."""
+    """Random bytes of up to ``max_size``, alone or after a datagram's start."""
     rng = draw(st.randoms(use_true_random=False))
     size = draw(st.sampled_from([0, 1, 16, 100, 2000, MAX // 2, MAX]))
     tail = rng.randbytes(rng.randrange(size + 1))
     if draw(st.booleans()):
         return tail
-    return (head(draw(st.sampled_from(CLASSES))) + tail)[:MAX]
+    return (datagram(draw(st.sampled_from(CLASSES)), b"")[: -len(HEADER)] + tail)[:MAX]
 
 
 def check_bounded(data: bytes) -> None:
-    peak, outcome = peak_of_decode(CODEC, data)
-    assert isinstance(outcome, Message | DecodeError)  # anything else has raised already
+    peak, outcome = peak_of_decode(CODEC, data)  # anything but a DecodeError raises here
     if isinstance(outcome, DecodeError):
         assert outcome.reason in DecodeError.REASONS
+    else:
+        assert type(outcome) in CLASSES
     assert peak <= bound_for(data)
 
 
@@ -392,33 +363,3 @@ def test_hostile_structures_only_raise_decode_error_within_the_bound(data: bytes
 @given(random_datagrams())
 def test_random_bytes_only_raise_decode_error_within_the_bound(data: bytes) -> None:
     check_bounded(data)
-
-
-def test_long_arrays_of_valid_messages_decode_as_sent() -> None:
-    # Arrays over 256 items take the pure-Python unpacker: same values, same types.
-    ints = LimInts(list(range(-20000, 20000, 3)))
-    table = LimTable({str(i): list(range(i)) for i in range(300)})
-    bare = LimBareList([[i, {"k": [i, i]}] for i in range(1000)])
-    for msg in (ints, table, bare):
-        assert CODEC.decode(CODEC.encode(msg)) == msg
-    assert type(CODEC.decode(CODEC.encode(bare)).v[999][1]["k"]) is list  # type: ignore[attr-defined]
-
-
-def test_the_bound_is_the_documented_formula() -> None:
-    for size in (MIN_DATAGRAM, 1500, MAX):
-        expected = (8 + 1 + 256) * size + 256 * 1024
-        assert Codec(SPECS, FP, size).max_decode_bytes == expected
-    assert CODEC.max_decode_bytes < 18 * 2**20  # the default: about 17 MiB
-
-
-@pytest.mark.parametrize(("depth", "decodes"), [(MAX_NESTING, True), (MAX_NESTING + 1, False)])
-def test_a_field_nests_at_most_what_the_encoder_can_send_again(depth: int, decodes: bool) -> None:
-    data = datagram(LimBareDict, b"\x81\xa0" * depth + b"\x00")
-    assert len(data) > MAX_NESTING  # smaller datagrams cannot nest that deep: not looked at
-    if decodes:
-        msg = CODEC.decode(data)
-        assert CODEC.decode(CODEC.encode(msg)) == msg
-    else:
-        with pytest.raises(DecodeError, match="nest too deeply") as caught:
-            CODEC.decode(data)
-        assert caught.value.reason == "wrong_type"

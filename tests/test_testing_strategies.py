@@ -46,6 +46,7 @@ class KitchenSink(Message):
     many: tuple[float, ...]
     table: dict[str, list[int]]
     bare: list  # type: ignore[type-arg]
+    bare_map: dict  # type: ignore[type-arg]
     grid: np.ndarray  # type: ignore[type-arg]
     finite: Annotated[float, Finite]
     seats: Annotated[int, msgspec.Meta(ge=1, le=8)]

@@ -92,6 +92,9 @@ def _strategy(node: mi.Type) -> SearchStrategy[Any]:
             return st.lists(_strategy(item), max_size=_MAX_ITEMS).map(tuple)
         case mi.TupleType(item_types=items):
             return st.tuples(*(_strategy(item) for item in items))
+        case mi.DictType(key_type=mi.AnyType(), value_type=values):  # a bare dict
+            keys = st.one_of(st.none(), st.booleans(), st.integers(*_INT64), st.text(max_size=8))
+            return st.dictionaries(keys, _strategy(values), max_size=_MAX_ITEMS)
         case mi.DictType(key_type=keys, value_type=values):
             return st.dictionaries(_strategy(keys), _strategy(values), max_size=_MAX_ITEMS)
         case mi.StructType(cls=kind):
