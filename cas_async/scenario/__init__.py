@@ -9,7 +9,10 @@
 * :mod:`.objective`: what a mission is for (:class:`Objective`): its end, progress,
   checks and results; :class:`Items` retires items of the Environment's ledger.
 * :mod:`.runner`: one run as a coroutine, or step by step (:class:`ScenarioRun`);
-  :mod:`.results`: what it measured.
+  :mod:`.results`: what it measured; :mod:`.listener`: what a run tells a
+  :class:`RunListener` as it goes (the live view is one).
+* :mod:`.scene`: the static scene an application declares for the views
+  (:class:`Scene` of :class:`Disc`, :class:`Rect`, :class:`Polyline`, :class:`Spot`).
 * :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
   the summary table and results.json, PNG figures, the live progress line.
 * :mod:`.sweep`: a scenario over a grid of values and seeds in worker processes
@@ -19,6 +22,7 @@
 
 from ._app import LayerSlot, Measure, Mission, SimulationApp, SimulationSetup
 from ._config import ScenarioError, from_toml, setting
+from ._listener import RunListener
 from ._loader import (
     FaultsConfig,
     RunConfig,
@@ -34,6 +38,7 @@ from ._progress import Progress
 from ._report import results_dict, statistics, summary_table, write_results
 from ._results import RunResult, RunStatus
 from ._runner import ScenarioRun, check_key, run_scenario
+from ._scene import Disc, Polyline, Rect, Scene, Shape, Spot
 from ._sweep import run_sweep, sweep
 from ._sweep_grid import SweepAxis, SweepPlan, parse_vary, plan_sweep
 from ._sweep_report import sweep_table
@@ -41,6 +46,7 @@ from ._sweep_results import MetricStats, SweepOutcome, SweepRun
 from ._trace import Trace, TraceCsv
 
 __all__ = [
+    "Disc",
     "FaultsConfig",
     "Items",
     "LayerSlot",
@@ -48,15 +54,21 @@ __all__ = [
     "MetricStats",
     "Mission",
     "Objective",
+    "Polyline",
     "Progress",
+    "Rect",
     "RunConfig",
+    "RunListener",
     "RunResult",
     "RunStatus",
     "Scenario",
     "ScenarioError",
     "ScenarioRun",
+    "Scene",
+    "Shape",
     "SimulationApp",
     "SimulationSetup",
+    "Spot",
     "SweepAxis",
     "SweepOutcome",
     "SweepPlan",
