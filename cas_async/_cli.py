@@ -40,10 +40,12 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Final, NoReturn, TextIO, final
 
+from . import _cli_view as views
 from ._errors import ConfigurationError
 from ._interrupts import EXIT_INTERRUPTED, Interrupted, Interrupts
 from ._runner import run
 from ._swarm_key import SwarmKey
+from .live import write_scene
 from .scenario import (
     RunResult,
     RunStatus,
@@ -135,6 +137,7 @@ def _parser() -> argparse.ArgumentParser:
         dest="overrides",
         help="override a scenario key, e.g. strategy.name=solo",
     )
+    views.add_live_arguments(runner)
     world = commands.add_parser(
         "world",
         help="be the world of a run whose workers join from other hosts",
@@ -155,6 +158,7 @@ def _parser() -> argparse.ArgumentParser:
     world.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     world.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        dest="overrides", help="override a scenario key")  # fmt: skip
+    views.add_live_arguments(world)
     worker = commands.add_parser(
         "worker",
         help="run a share of the robots of a world's run",
@@ -188,6 +192,7 @@ def _parser() -> argparse.ArgumentParser:
     add("--jobs", type=_at_least_one, metavar="J",
         help=f"worker processes (default: the CPUs, {os.cpu_count()} here)")  # fmt: skip
     add("--no-plots", action="store_true", help="skip the box plots")
+    views.add_view_commands(commands)
     return parser
 
 
@@ -293,9 +298,15 @@ def _command_run(
         with interrupts.deferred():
             abandon_build()
         return EXIT_INTERRUPTED
+    try:
+        live = views.open_live(args, scenario, stdout)  # bound now: the robots start on the loop
+    except ConfigurationError as exc:
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
     session = _Session(
         scenario_run, scenario, out, (stdout, stderr), interrupts, owns_process, not args.no_plots
     )
+    session.live = live
     with session.leaving_at_once():
         with interrupts.calling(session.request_stop):
             if world is not None and scenario.run.virtual:
@@ -398,6 +409,8 @@ class _Session:
         self._stop: asyncio.Event | None = None
         self._written: list[Path] = []
         self._failure_shown = False  # a traceback printed with the summary
+        self.live: views.LiveOptions | None = None
+        """``--live``: the run's view is served while it runs."""
 
     def request_stop(self) -> None:
         """A signal while the loop runs (called from the signal handler).
@@ -418,7 +431,7 @@ class _Session:
         self._loop, self._stop = asyncio.get_running_loop(), stop
         if self._interrupts.interrupted:
             stop.set()
-        async with self._run:
+        async with views.serve_live(self.live, self._run, stop, self._stderr), self._run:
             self._ended(await self._run.until_done())
             if self._interrupts.interrupted and self._owns_process:
                 self._exit_now()
@@ -442,6 +455,7 @@ class _Session:
             self._written = [write_results(result, self._out)]
             if self._run.trace_csv is not None:  # written as the run went
                 self._written.append(self._run.trace_csv)
+            self._written.append(write_scene(self._run, self._out))  # what a replay draws
             print(summary_table(result), file=self._stdout)
             if result.traceback:
                 print(result.traceback, file=self._stderr)
@@ -565,6 +579,10 @@ def main(
                 return _command_worker(args, stderr)
             if args.command == "sweep":
                 return _command_sweep(args, stdout, stderr, interrupts, owns_process)
+            if args.command == "view":
+                return views.command_view(args, stdout, stderr, interrupts)
+            if args.command == "export":
+                return views.command_export(args, stdout, stderr)
         raise AssertionError(f"unhandled command {args.command!r}")  # argparse requires one
     except Interrupted:
         return EXIT_INTERRUPTED

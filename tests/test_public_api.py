@@ -4,7 +4,8 @@
 * ``cas_async.transport``: what a transport author implements and wraps;
 * ``cas_async.sim``: the simulation kit (Environment, kinematics, simulated middleware);
 * ``cas_async.scenario``: scenario files and runs, and the contract of an application;
-* ``cas_async.testing``: what a user's test suite uses (with the pytest plugin).
+* ``cas_async.testing``: what a user's test suite uses (with the pytest plugin);
+* ``cas_async.live``: watching a run: the live view, replays, MCAP export.
 
 Every other module is internal, and says so with a leading underscore in its path.
 
@@ -22,6 +23,7 @@ import types
 import pytest
 
 import cas_async
+import cas_async.live
 import cas_async.scenario
 import cas_async.sim
 import cas_async.testing
@@ -29,12 +31,13 @@ import cas_async.transport
 
 FACES: dict[str, types.ModuleType] = {
     "cas_async": cas_async,
+    "cas_async.live": cas_async.live,
     "cas_async.scenario": cas_async.scenario,
     "cas_async.sim": cas_async.sim,
     "cas_async.testing": cas_async.testing,
     "cas_async.transport": cas_async.transport,
 }
-SUBPACKAGES = {"scenario", "sim", "testing", "transport"}
+SUBPACKAGES = {"live", "scenario", "sim", "testing", "transport"}
 
 
 def _names(module: types.ModuleType) -> dict[str, object]:
