@@ -180,6 +180,7 @@ def command_view(
     async def serve() -> None:
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
+
         def stop_serving() -> None:  # from the signal handler: only schedules
             loop.call_soon_threadsafe(stop.set)
 

@@ -29,5 +29,5 @@ def floor_scene(boxes: Sequence[Box], zone: tuple[Point, float]) -> Scene:
                 Rect(box.x, box.y, box.size, box.size, label=str(box.obj), kind="object")
                 for box in boxes
             ),
-        ]
+        ],
     )

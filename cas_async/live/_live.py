@@ -185,6 +185,11 @@ class LiveView:
         return self._server.port
 
     @property
+    def skipped_frames(self) -> int:
+        """Frames the connected viewers could not take in time (a later one went instead)."""
+        return sum(viewer.skipped_frames for viewer in self._server.viewers)
+
+    @property
     def viewers(self) -> int:
         """How many viewers are connected now."""
         return len(self._server.viewers)

@@ -192,7 +192,8 @@ def hello(
     ``mode`` is ``"live"`` or ``"replay"``; ``words`` are the objective's noun,
     verb and second count's name (``"bucket"``, ``"delivered"``, ``"exchanges"``);
     ``kind`` is the objective's (``"items"``: exchange and delivered events name
-    the robots and items); ``more`` adds mode-specific keys (``fps``, ``pace``; a replay's ``times``, ``events``).
+    the robots and items); ``more`` adds mode-specific keys (``fps``, ``pace``; a
+    replay's ``times``, ``events``, ``end``).
     """
     noun, verb, detail = words
     return {

@@ -94,6 +94,8 @@ class ReplayView:
         ]
         events.sort(key=lambda event: float(event["t"]))
         groups = results.get("groups", {})
+        kind = str(results.get("kind", "items"))  # an item mission's results name no kind
+        items = kind == "items"
         return hello(
             "replay",
             app=str(results.get("app", "")),
@@ -107,10 +109,10 @@ class ReplayView:
             target=int(results.get("target", 0)),
             words=(
                 str(results.get("item_name", "item")),
-                str(results.get("verb", "done")),
-                str(results.get("detail", "events")),
+                str(results.get("verb", "delivered" if items else "done")),
+                "exchanges" if items else "events",  # results.json keeps no name for it
             ),
-            kind=str(results.get("kind", "items")),
+            kind=kind,
             times=recording.times,
             events=events,
             end={

@@ -141,6 +141,20 @@ class Viewer:
         self._transport.write(frame(Opcode.CLOSE, close_payload(code, reason)))
         self._transport.close()  # after the buffer is written: FIN, not a reset
 
+    def fail(self, code: CloseCode, reason: str) -> None:
+        """The client broke the protocol: a close frame, then the end of what we send.
+
+        The connection is half-closed: what the client still sends is read and
+        dropped until it closes its side, so that the close frame reaches it (closing
+        with unread data would reset the connection, and could lose it).
+        """
+        self.closed = True
+        self._transport.write(frame(Opcode.CLOSE, close_payload(code, reason)))
+        if self._transport.can_write_eof():
+            self._transport.write_eof()
+        else:
+            self._transport.close()
+
     @property
     def paused(self) -> bool:
         """Whether the connection's buffer is past its high-water mark (frames held back)."""
@@ -178,6 +192,7 @@ class _Connection(asyncio.Protocol):
         self._head = bytearray()
         self._viewer: Viewer | None = None
         self._reader = FrameReader(MESSAGE_LIMIT)
+        self._draining = False  # after a protocol error: read, drop, until the client closes
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -185,6 +200,8 @@ class _Connection(asyncio.Protocol):
         transport.set_write_buffer_limits(high=HIGH_WATER)
 
     def data_received(self, data: bytes) -> None:
+        if self._draining:
+            return
         if self._viewer is not None:
             self._websocket_data(self._viewer, data)
             return
@@ -258,7 +275,8 @@ class _Connection(asyncio.Protocol):
         try:
             messages = self._reader.feed(data)
         except ProtocolError as error:
-            viewer.close(error.code, error.reason)
+            self._draining = True
+            viewer.fail(error.code, error.reason)
             return
         for message in messages:
             if message.opcode is Opcode.PING:
@@ -273,7 +291,8 @@ class _Connection(asyncio.Protocol):
             elif message.opcode is Opcode.TEXT:
                 self._server.received(viewer, message.payload.decode("utf-8"))
             elif message.opcode is Opcode.BINARY:
-                viewer.close(CloseCode.UNSUPPORTED, "this server reads text messages only")
+                self._draining = True
+                viewer.fail(CloseCode.UNSUPPORTED, "this server reads text messages only")
                 return
 
     def _respond(
@@ -299,6 +318,9 @@ class _Connection(asyncio.Protocol):
         )
         transport.write(head.encode("latin-1") + b"\r\n" + body)
         transport.close()
+
+    def eof_received(self) -> bool | None:
+        return None  # the client is done: close (after what is buffered is written)
 
     def pause_writing(self) -> None:
         if self._viewer is not None:

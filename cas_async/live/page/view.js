@@ -93,7 +93,7 @@
     state.frames += 1;
     if (state.mode === "replay") {
       state.pending = false;
-      if (!state.playing) setTime(frame.t, false);
+      if (!state.playing && frame.t !== state.replayT) { setTime(frame.t, false); replayLog(frame.t); }
     }
     redraw();
   }
