@@ -37,7 +37,8 @@ from ..scenario import ScenarioRun
 from ..sim._items import ItemEvent, ItemEventKind
 from ..transport import InsecureBindWarning
 from ._protocol import encode_frame, hello, text
-from ._server import Viewer, ViewServer, is_loopback
+from ._server import ViewServer, is_loopback
+from ._viewer import Viewer
 from ._wall import Pacer, wall_bounded
 
 __all__ = ["LiveView"]

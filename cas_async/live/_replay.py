@@ -19,7 +19,8 @@ from .._errors import ConfigurationError
 from ..transport import InsecureBindWarning
 from ._protocol import encode_frame, hello, text
 from ._recording import Recording, RecordingError
-from ._server import Viewer, ViewServer, is_loopback
+from ._server import ViewServer, is_loopback
+from ._viewer import Viewer
 from ._websocket import CloseCode
 
 __all__ = ["ReplayView"]

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from cas_async.live import ReplayView, decode_frame
-from cas_async.live._server import CSP
+from cas_async.live._connection import CSP
 
 from .helpers import read_trace
 
