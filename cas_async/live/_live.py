@@ -104,6 +104,7 @@ class LiveView:
         self._latest: tuple[float, npt.NDArray[np.float64], npt.NDArray[np.bool_]] | None = None
         self._latest_sent = -1  # the seq of the last frame sent
         self._last_wall = -math.inf  # when the last frame went
+        self._last_events = -math.inf  # when the last events went
         self._events: list[dict[str, Any]] = []
         self._dropped = 0
         self._tally = (0, 0)
@@ -268,7 +269,7 @@ class LiveView:
             del self._events[0]
             self._dropped += 1
         self._events.append(event)
-        if self._wall() - self._last_wall >= 1 / self._fps:
+        if self._wall() - self._last_events >= 1 / self._fps:  # else with the next frame
             self._flush_events()
 
     def _flush_events(self) -> None:
@@ -277,6 +278,7 @@ class LiveView:
         message = {"type": "events", "events": self._events, "dropped": self._dropped}
         self._server.broadcast_text(text(message))
         self._events, self._dropped = [], 0
+        self._last_events = self._wall()
 
     def _send_latest(self, *, final: bool = False) -> None:
         assert self._latest is not None

@@ -220,7 +220,10 @@ def hello(
 
 def text(message: dict[str, Any]) -> str:
     """A JSON text message: compact, no NaN or infinity (they become ``null``)."""
-    return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
+    try:
+        return json.dumps(message, separators=(",", ":"), allow_nan=False)
+    except ValueError:  # a NaN or an infinity somewhere: rare, so looked for only now
+        return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
 
 
 def _finite(value: Any) -> Any:
