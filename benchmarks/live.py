@@ -14,8 +14,10 @@ would) and waits for it to connect before the robots start. Runs alternate
 off, on, off, on... so that both see the same machine.
 
 Reported: the median wall time of each mode, the overhead of the view
-(on / off - 1), the frames the viewer decoded, and the frame's size and its
-cost to build (positions, carriers, the measures) at this count.
+(on / off - 1), the same for the CPU time of the run's process (steadier than
+the wall time on a machine that others share), the frames the viewer decoded,
+and the frame's size and its cost to build (positions, carriers, the measures)
+at this count.
 
 Target (exit status 1 when it fails, or a run does not complete): the
 overhead is under ``LIMIT`` (5%).
@@ -76,18 +78,20 @@ def run_child(path: str, live: bool, fps: float) -> dict[str, Any]:
                     sys.executable, "-c", _VIEWER, url, stdout=subprocess.PIPE
                 )
                 await view.wait_for_viewer()
-                started = time.perf_counter()
+                started, cpu = time.perf_counter(), time.process_time()
                 async with run:
                     await run.until_done()
                 figures["wall"] = time.perf_counter() - started
+                figures["cpu"] = time.process_time() - cpu
                 figures["sent"] = view.frames_sent
             out, _ = await viewer.communicate()
             figures["decoded"] = json.loads(out)["frames"]
         else:
-            started = time.perf_counter()
+            started, cpu = time.perf_counter(), time.process_time()
             async with run:
                 await run.until_done()
             figures["wall"] = time.perf_counter() - started
+            figures["cpu"] = time.process_time() - cpu
         figures.update(status=str(run.result.status), makespan=run.result.makespan)
         figures["robots"] = len(run.trace.ids)
         return figures
@@ -149,6 +153,8 @@ def main(argv: list[str] | None = None) -> int:
     off = statistics.median(r["wall"] for r in runs["off"])
     on = statistics.median(r["wall"] for r in runs["on"])
     overhead = on / off - 1
+    cpu_off = statistics.median(r["cpu"] for r in runs["off"])
+    cpu_on = statistics.median(r["cpu"] for r in runs["on"])
     summary = {
         "scenario": path.stem,
         "robots": runs["off"][0]["robots"],
@@ -159,6 +165,9 @@ def main(argv: list[str] | None = None) -> int:
         "walls_off": [r["wall"] for r in runs["off"]],
         "walls_on": [r["wall"] for r in runs["on"]],
         "overhead": overhead,
+        "cpu_off": cpu_off,
+        "cpu_on": cpu_on,
+        "cpu_overhead": cpu_on / cpu_off - 1,
         "frames_decoded": [r["decoded"] for r in runs["on"]],
         **frame_cost(str(path)),
     }
@@ -166,6 +175,8 @@ def main(argv: list[str] | None = None) -> int:
         f"{path.stem}: {summary['robots']} robots, virtual time; median of {args.runs} runs\n"
         f"  without --live   {off:8.2f} s\n"
         f"  --live, 1 viewer {on:8.2f} s   ({overhead:+.1%}; target < {LIMIT:.0%})\n"
+        f"  CPU time (the run's process): {cpu_off:.2f} s without, {cpu_on:.2f} s with "
+        f"({cpu_on / cpu_off - 1:+.1%})\n"
         f"  frames decoded   {summary['frames_decoded']} (at most {args.fps:g} a second)\n"
         f"  one frame        {summary['bytes']} bytes, built in {summary['build_us']:.0f} µs"
     )

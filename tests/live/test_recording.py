@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import shutil
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +13,7 @@ import pytest
 
 from cas_async.live import UNKNOWN, Recording, RecordingError
 
-from .helpers import read_trace, results_of
+from .helpers import cli, finish, read_trace, results_of, url_of
 
 
 def test_every_sample_reads_back_as_the_trace_has_it(fire_run: Path) -> None:
@@ -105,3 +107,30 @@ def test_a_row_of_the_wrong_robot_is_named_when_read(fire_run: Path, tmp_path: P
     recording = Recording(copy)
     with pytest.raises(RecordingError, match=f"trace.csv: line {row + 1}: expected robot 5's row"):
         recording.sample(1)
+
+
+def test_view_refuses_a_directory_that_is_no_run(tmp_path: Path) -> None:
+    with cli("view", tmp_path, "--port", "0") as process:
+        code, _, stderr = finish(process)
+    assert code == 2
+    assert f"{tmp_path / 'results.json'}: missing" in stderr
+
+
+def test_view_serves_until_a_signal(fire_run: Path) -> None:
+    pytest.importorskip("websockets")
+    with cli("view", fire_run, "--port", "0") as process:
+        url = url_of(process, "replay:")
+        seen = asyncio.run(_hello(url))
+        process.send_signal(signal.SIGTERM)
+        code, _, stderr = finish(process)
+    assert seen["mode"] == "replay"
+    assert code == 0
+    assert "replay stopped" in stderr
+
+
+async def _hello(url: str) -> dict[str, object]:
+    import websockets
+
+    async with websockets.connect(url.replace("http://", "ws://") + "ws") as socket:
+        data: dict[str, object] = json.loads(await socket.recv())
+        return data
