@@ -43,11 +43,13 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Final, NoReturn, TextIO, final
 
+from . import _cli_view as views
 from ._errors import ConfigurationError
 from ._interrupts import EXIT_INTERRUPTED, Interrupted, Interrupts
 from ._pipes import PipeGuard
 from ._runner import run
 from ._swarm_key import SwarmKey
+from .live import write_scene
 from .scenario import (
     FailOnDrops,
     RunResult,
@@ -151,6 +153,7 @@ def _parser() -> argparse.ArgumentParser:
         dest="overrides",
         help="override a scenario key, e.g. strategy.name=solo",
     )
+    views.add_live_arguments(runner)
     world = commands.add_parser(
         "world",
         help="be the world of a run whose workers join from other hosts",
@@ -173,6 +176,7 @@ def _parser() -> argparse.ArgumentParser:
                        metavar="REASON,...", help="fail the run on these drops")  # fmt: skip
     world.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        dest="overrides", help="override a scenario key")  # fmt: skip
+    views.add_live_arguments(world)
     worker = commands.add_parser(
         "worker",
         help="run a share of the robots of a world's run",
@@ -206,6 +210,7 @@ def _parser() -> argparse.ArgumentParser:
     add("--jobs", type=_at_least_one, metavar="J",
         help=f"worker processes (default: the CPUs, {os.cpu_count()} here)")  # fmt: skip
     add("--no-plots", action="store_true", help="skip the box plots")
+    views.add_view_commands(commands)
     return parser
 
 
@@ -321,10 +326,16 @@ def _command_run(
     except ConfigurationError as exc:  # the app's build, --processes, the layers built
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE
+    try:
+        live = views.open_live(args, scenario, stdout)  # bound now: the robots start on the loop
+    except ConfigurationError as exc:
+        print(f"error: {exc}", file=stderr)
+        return EXIT_USAGE
     session = _Session(
         scenario_run, scenario, out, (stdout, stderr), interrupts, owns_process, not args.no_plots
     )
     session.fail_on_drops = args.fail_on_drops
+    session.live = live
     with session.leaving_at_once():
         with interrupts.calling(session.request_stop):
             if world is not None and scenario.run.virtual:
@@ -440,6 +451,8 @@ class _Session:
         """Why the robots could not start, if a configuration error stopped them."""
         self.fail_on_drops: FailOnDrops | None = None
         """The drops that fail the run (``--fail-on-drops``), if any do."""
+        self.live: views.LiveOptions | None = None
+        """``--live``: the run's view is served while it runs."""
 
     def request_stop(self) -> None:
         """A signal while the loop runs (called from the signal handler).
@@ -461,6 +474,9 @@ class _Session:
         if self._interrupts.interrupted:
             stop.set()
         async with contextlib.AsyncExitStack() as stack:
+            await stack.enter_async_context(
+                views.serve_live(self.live, self._run, stop, self._stderr)
+            )
             try:
                 await stack.enter_async_context(self._run)
             except ConfigurationError as exc:  # refused while starting: nothing ran
@@ -491,6 +507,7 @@ class _Session:
             self._written = [write_results(result, self._out)]
             if self._run.trace_csv is not None:  # written as the run went
                 self._written.append(self._run.trace_csv)
+            self._written.append(write_scene(self._run, self._out))  # what a replay draws
             print(summary_table(result), file=self._stdout)
             if result.traceback:
                 print(result.traceback, file=self._stderr)
@@ -615,6 +632,10 @@ def main(
                 return _command_worker(args, stderr)
             if args.command == "sweep":
                 return _command_sweep(args, stdout, stderr, interrupts, owns_process)
+            if args.command == "view":
+                return views.command_view(args, stdout, stderr, interrupts)
+            if args.command == "export":
+                return views.command_export(args, stdout, stderr)
         raise AssertionError(f"unhandled command {args.command!r}")  # argparse requires one
     except Interrupted:
         return EXIT_INTERRUPTED

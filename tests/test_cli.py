@@ -194,7 +194,11 @@ def test_no_plots_writes_no_figure_and_the_same_run_again(
     out = tmp_path / "out"
     finished = run_cli("run", SHIPPED, *FAST, "--seed", "3", "--out", out, "--no-plots")
     assert finished.code == 0, finished.stderr
-    assert sorted(path.name for path in out.iterdir()) == ["results.json", "trace.csv"]
+    assert sorted(path.name for path in out.iterdir()) == [
+        "results.json",
+        "scene.json",
+        "trace.csv",
+    ]
     assert ".png" not in finished.stdout
     # Virtual time is deterministic: same seed, same run (the wall time aside).
     _, first_out = virtual_run

@@ -5,6 +5,7 @@
 * ``cas_async.sim``: the simulation kit (Environment, kinematics, simulated middleware);
 * ``cas_async.scenario``: scenario files and runs, and the contract of an application;
 * ``cas_async.testing``: what a user's test suite uses (with the pytest plugin);
+* ``cas_async.live``: watching a run: the live view, replays, MCAP export;
 * ``cas_async.ros``: ROS 2 robots over rmw_zenoh (the ``ros`` extra);
 * ``cas_async.rl``: a scenario as a learning environment (the ``rl`` extra).
 
@@ -25,6 +26,7 @@ import types
 import pytest
 
 import cas_async
+import cas_async.live
 import cas_async.ros
 import cas_async.scenario
 import cas_async.sim
@@ -33,13 +35,14 @@ import cas_async.transport
 
 FACES: dict[str, types.ModuleType] = {
     "cas_async": cas_async,
+    "cas_async.live": cas_async.live,
     "cas_async.ros": cas_async.ros,
     "cas_async.scenario": cas_async.scenario,
     "cas_async.sim": cas_async.sim,
     "cas_async.testing": cas_async.testing,
     "cas_async.transport": cas_async.transport,
 }
-SUBPACKAGES = {"rl", "ros", "scenario", "sim", "testing", "transport"}
+SUBPACKAGES = {"live", "rl", "ros", "scenario", "sim", "testing", "transport"}
 EXTRAS = {"cas_async.rl": "rl"}
 """Faces that need an extra: checked where it is installed (CI installs them all)."""
 for _face in EXTRAS:

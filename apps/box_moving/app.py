@@ -19,6 +19,7 @@ from .gripper import FloorGripper
 from .layout import lift_problems, place_objects, spot_count
 from .messages import MESSAGES
 from .objective import MoveObjects
+from .scene import floor_scene
 from .task import Task
 
 __all__ = [
@@ -172,4 +173,5 @@ class BoxMoving:
             groups={"Robot": list(roster)},
             extra=lambda: {"coordination": coordination_rule},
             objective=MoveObjects(floor, config.mission.target, setup.world),
+            scene=floor_scene(boxes, (config.destination.at, config.destination.radius)),
         )

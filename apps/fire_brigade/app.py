@@ -22,6 +22,7 @@ from .goal import Goal
 from .group_activity import GroupActivity
 from .lines import LineShare, segments
 from .messages import MESSAGES, Kind
+from .scene import brigade_scene
 from .strategies import TimeStrategy, strategy_class
 from .strategy import Strategy
 from .task import Task
@@ -221,4 +222,5 @@ class FireBrigade:
             extra=lambda: {"strategy": strategy_label},
             measures={"line_share": on_lines},
             snapshot_exchanges=THESIS_SNAPSHOTS,
+            scene=brigade_scene(generators, sinks),
         )

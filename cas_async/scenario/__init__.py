@@ -12,7 +12,10 @@
   ``now()`` and ``progress()`` say where it stands); :mod:`.background`: a run on
   a loop of its own in a worker thread, for an asyncio service (:class:`BackgroundRun`);
   :mod:`.results`: what it measured; :mod:`.drop_policy`: drops that fail a run
-  (:class:`FailOnDrops`).
+  (:class:`FailOnDrops`); :mod:`.listener`: what a run tells a :class:`RunListener`
+  as it goes (the live view is one).
+* :mod:`.scene`: the static scene an application declares for the views
+  (:class:`Scene` of :class:`Disc`, :class:`Rect`, :class:`Polyline`, :class:`Spot`).
 * :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
   the summary table and results.json, PNG figures, the live progress line.
 * :mod:`.sweep`: a scenario over a grid of values and seeds in worker processes
@@ -24,6 +27,7 @@ from ._app import LayerSlot, Measure, Mission, SimulationApp, SimulationSetup
 from ._background import BackgroundRun
 from ._config import ScenarioError, from_toml, setting
 from ._drop_policy import FailOnDrops
+from ._listener import RunListener
 from ._loader import (
     FaultsConfig,
     RunConfig,
@@ -40,6 +44,7 @@ from ._report import results_dict, statistics, summary_table, write_results
 from ._results import RunProgress, RunResult, RunStatus
 from ._run_transport import check_key
 from ._runner import ScenarioRun, run_scenario
+from ._scene import Disc, Polyline, Rect, Scene, Shape, Spot
 from ._sweep import run_sweep, sweep
 from ._sweep_grid import SweepAxis, SweepPlan, parse_vary, plan_sweep
 from ._sweep_report import sweep_table
@@ -48,6 +53,7 @@ from ._trace import Trace, TraceCsv
 
 __all__ = [
     "BackgroundRun",
+    "Disc",
     "FailOnDrops",
     "FaultsConfig",
     "Items",
@@ -56,16 +62,22 @@ __all__ = [
     "MetricStats",
     "Mission",
     "Objective",
+    "Polyline",
     "Progress",
+    "Rect",
     "RunConfig",
+    "RunListener",
     "RunProgress",
     "RunResult",
     "RunStatus",
     "Scenario",
     "ScenarioError",
     "ScenarioRun",
+    "Scene",
+    "Shape",
     "SimulationApp",
     "SimulationSetup",
+    "Spot",
     "SweepAxis",
     "SweepOutcome",
     "SweepPlan",

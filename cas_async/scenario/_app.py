@@ -40,6 +40,7 @@ from .._types import RobotId
 from ..sim._environment import Environment
 from ..transport._base import Transport
 from ._objective import Objective
+from ._scene import Scene
 
 __all__ = [
     "APP_MEMBERS",
@@ -181,6 +182,8 @@ class Mission:
             counts spread over the run.
         objective: what the mission is for, when it is not retiring ``target``
             items: its end, its progress, its checks and its results.
+        scene: what the world holds besides the robots (zones, stations, objects):
+            the live view, the replay and the MCAP export draw it.
 
     Raises:
         ValueError: neither or both of ``target`` and ``objective`` were given.
@@ -193,6 +196,7 @@ class Mission:
     measures: Mapping[str, Measure] = field(default_factory=dict)
     snapshot_exchanges: Sequence[int] = ()
     objective: Objective | None = None
+    scene: Scene = field(default_factory=Scene)
 
     def __post_init__(self) -> None:
         if (self.target is None) == (self.objective is None):

@@ -36,6 +36,7 @@ from ._app import Mission
 from ._distributed import World
 from ._gc_policy import young_generation_for
 from ._layers import check_built
+from ._listener import Listeners, RunListener
 from ._loader import Scenario
 from ._measure import mark_failed, measure_end, measure_positions
 from ._objective import CallbackWatch, Items, Objective, not_distributable
@@ -161,6 +162,7 @@ class ScenarioRun:
         if world is not None:
             world.adopt(environment, mission)
         self._swarm = Swarm(mission.robots if world is None else ())
+        self._listeners = Listeners()
         self._started_swarm = False
         self._ended = False
         self._gc = contextlib.ExitStack()
@@ -169,6 +171,8 @@ class ScenarioRun:
         if self._progress is not None and not self._ended:
             done, detail = self._objective.progress()
             self._progress.update(t, done, detail)
+        if not self._ended:
+            self._listeners.changed(t)
 
     def _completed(self, t: float) -> None:
         if self._ended or self._complete.is_set():  # what comes after is not the run's
@@ -210,6 +214,10 @@ class ScenarioRun:
     def objective(self) -> Objective:
         """What the mission is for: :class:`Items` unless the application chose its own."""
         return self._objective
+
+    def listen(self, listener: RunListener) -> None:
+        """Adds ``listener``: it hears every sample and progress change from now on."""
+        self._listeners.add(listener)
 
     @property
     def swarm(self) -> Swarm:
@@ -262,6 +270,7 @@ class ScenarioRun:
                 self._complete,
                 self._stop,
                 self._sample,
+                self._listeners.hold,
             )
         except LayerError as error:  # the swarm's, raised again as its task is awaited
             status, failure = RunStatus.FAILED, error
@@ -349,7 +358,9 @@ class ScenarioRun:
             return
         objective = self._objective
         objective.check()  # the full audit of the mission's invariant
-        self.trace.sample(t, self.environment.positions_at(t).xy, self._carrying())
+        carrying = self._carrying()
+        self.trace.sample(t, self.environment.positions_at(t).xy, carrying)
+        self._listeners.sampled(t, self.trace.at_time(t), carrying)  # the trace's own copy
         if self._progress is not None:
             done, detail = objective.progress()
             self._progress.update(t, done, detail)
@@ -423,19 +434,19 @@ async def _until_done(
     complete: asyncio.Event,
     stop: asyncio.Event | None,
     sample: Callable[[float], None],
+    hold: Callable[[float], Coroutine[Any, Any, None]],
 ) -> tuple[RunStatus, BaseException | None]:
-    """Samples every ``interval`` simulated seconds until one of the ends; returns which.
+    """Samples every ``interval`` simulated seconds, awaiting ``hold`` after each, until an end.
 
-    The exception is that of a failed run (a layer's, or the sampling's).
+    Returns which end; the exception is that of a failed run (a layer's, or the sampling's).
     """
 
     async def sampling() -> None:
         tick = 0
         while True:
-            # Absolute instants: no drift however late each wake-up is.
-            t = tick * interval
-            await clock.sleep_until(t)
-            sample(clock.now())
+            await clock.sleep_until(tick * interval)  # absolute instants: no drift
+            sample(now := clock.now())
+            await hold(now)
             tick += 1
 
     waits = {

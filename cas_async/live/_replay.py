@@ -1,0 +1,159 @@
+"""A finished run, replayed in the live view's page: :class:`ReplayView`.
+
+The page is the live view's; the hello says ``"mode": "replay"`` and adds every
+sample's instant (``times``), the recorded events (``events``) and the end. The
+page plays the run itself: it asks for the instant it wants to show with
+``{"type": "seek", "t": T}`` and gets the frame of the last sample at or before
+``T`` (one request at a time, so a slow page never piles requests up).
+Nothing runs: everything comes from the run directory (:class:`Recording`).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import Any, final
+
+from .._errors import ConfigurationError
+from ..transport import InsecureBindWarning
+from ._protocol import encode_frame, hello, text
+from ._recording import Recording, RecordingError
+from ._server import ViewServer, is_loopback
+from ._viewer import Viewer
+from ._websocket import CloseCode
+
+__all__ = ["ReplayView"]
+
+
+@final
+class ReplayView:
+    """Serves a run directory's replay on one port of the running loop.
+
+    Use it as ``async with ReplayView(run_dir, port=0) as view: ...``; the
+    command line's ``view RUN_DIR`` serves one until it is interrupted.
+
+    Args:
+        run_dir: a finished run's output directory.
+        host: where to listen (loopback by default; another address warns).
+        port: 0 picks a free one (:attr:`url` tells which).
+
+    Raises:
+        RecordingError: the directory cannot be replayed (naming the file at fault).
+    """
+
+    def __init__(self, run_dir: Path, *, host: str = "127.0.0.1", port: int = 0) -> None:
+        self.recording = Recording(run_dir)
+        self._host, self._port = host, port
+        self._server = ViewServer(self._opened, self._received)
+        self._hello = text(self._hello_message())
+
+    async def __aenter__(self) -> ReplayView:
+        """Listens.
+
+        Raises:
+            ConfigurationError: the address cannot be bound.
+        """
+        if not is_loopback(self._host):
+            warnings.warn(
+                f"replay: listening on {self._host}, beyond this machine: anyone who can reach "
+                "it sees the run (the view has no authentication)",
+                InsecureBindWarning,
+                stacklevel=2,
+            )
+        try:
+            await self._server.start(self._host, self._port)
+        except OSError as exc:
+            raise ConfigurationError(
+                f"replay: cannot listen on {self._host} port {self._port}: {exc.strerror or exc}"
+            ) from None
+        return self
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        """Closes every viewer and stops listening."""
+        self._server.close(CloseCode.GOING_AWAY, "the replay server stopped")
+
+    @property
+    def url(self) -> str:
+        """The page's address."""
+        return self._server.url
+
+    @property
+    def port(self) -> int:
+        """The port listened on."""
+        return self._server.port
+
+    def _hello_message(self) -> dict[str, Any]:
+        recording = self.recording
+        results = recording.results
+        events: list[dict[str, Any]] = [
+            {"type": "exchange", "t": t, "count": count} for t, count in recording.exchanges
+        ]
+        events += [
+            {"type": "delivered", "t": t, "count": k + 1}
+            for k, t in enumerate(recording.deliveries)
+        ]
+        events.sort(key=lambda event: float(event["t"]))
+        groups = results.get("groups", {})
+        kind = str(results.get("kind", "items"))  # an item mission's results name no kind
+        items = kind == "items"
+        return hello(
+            "replay",
+            app=str(results.get("app", "")),
+            scenario=str(results.get("scenario", "")),
+            seed=int(results.get("seed", 0)),
+            world=recording.world,
+            robots=recording.robots,
+            groups=groups if isinstance(groups, dict) else {},
+            scene=recording.scene,
+            measures=recording.measures,
+            target=int(results.get("target", 0)),
+            words=(
+                str(results.get("item_name", "item")),
+                str(results.get("verb", "delivered" if items else "done")),
+                "exchanges" if items else "events",  # results.json keeps no name for it
+            ),
+            kind=kind,
+            times=recording.times,
+            events=events,
+            end={
+                "t": results.get("sim_time"),
+                "status": results.get("status"),
+                "makespan": results.get("makespan"),
+                "done": results.get("delivered"),
+            },
+        )
+
+    def _opened(self, viewer: Viewer) -> None:
+        viewer.send_text(self._hello)
+        if len(self.recording):
+            self._send(viewer, 0)
+
+    def _received(self, viewer: Viewer, message: str) -> None:
+        """A viewer's request: ``{"type": "seek", "t": T}``; anything else is ignored."""
+        try:
+            request = json.loads(message)
+            t = float(request["t"]) if request.get("type") == "seek" else None
+        except (ValueError, TypeError, KeyError, AttributeError):
+            return
+        if t is not None and len(self.recording):
+            try:
+                self._send(viewer, self.recording.index_at(t))
+            except RecordingError as exc:  # a malformed row: say so, keep serving
+                viewer.send_text(text({"type": "error", "message": str(exc)}))
+
+    def _send(self, viewer: Viewer, index: int) -> None:
+        sample = self.recording.sample(index)
+        last = index == len(self.recording) - 1
+        viewer.send_frame(
+            encode_frame(
+                sample.t,
+                sample.index,
+                sample.done,
+                sample.detail,
+                sample.measures,
+                sample.xy,
+                sample.carrying,
+                final=last,
+            )
+        )
