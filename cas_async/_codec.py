@@ -28,6 +28,7 @@ from collections.abc import Iterable
 from typing import Any, Final, Union, get_origin
 
 import msgspec
+import msgspec.inspect as mi
 import numpy as np
 
 from ._errors import DecodeError, EncodeError, MessageDefinitionError, StackMismatchError
@@ -46,11 +47,15 @@ PREFIX: Final = 4
 """Bytes of the fingerprint that begins every datagram."""
 
 _BYTES_PER_BYTE: Final = 128
-"""Most bytes of Python objects one datagram byte decodes into, with margin.
+"""Most bytes of Python objects one datagram byte decodes into, with margin, for the
+wire's own values: worst cases measured with tracemalloc (tests/test_decode_limits.py)
+are empty maps in a bare ``list`` field (one byte each, a dict each, about 113 B/B) and
+arrays nested in arrays. A struct adds what :func:`_struct_cost` says (see there)."""
 
-Worst cases measured with tracemalloc (tests/test_decode_limits.py): empty maps in
-a bare ``list`` field (one byte each, a dict each) and arrays nested in arrays.
-"""
+_POINTER: Final = 8
+"""Bytes of the slot that holds one decoded struct in its container."""
+_GC_HEADER: Final = 16
+"""Bytes the cyclic collector adds to each struct it tracks (not in ``__basicsize__``)."""
 
 _DECODE_OVERHEAD: Final = 256 * 1024
 """Fixed allowance of a decode: decoder state, one error message."""
@@ -85,7 +90,10 @@ class Codec:
     whatever it claims (arrays or maps of 2**32 items, strings of 4 GiB, arrays
     nested 1024 deep, numpy arrays of 10**9 elements)::
 
-        max_decode_bytes = 128 * max_size + 256 KiB
+        max_decode_bytes = per_byte * max_size + 256 KiB
+
+    where ``per_byte`` is 128 for the wire's own values, or more for a stack whose
+    structs are built from fewer bytes than they take (see :func:`_struct_cost`).
 
     Args:
         layers: the number of layers of the stack.
@@ -105,6 +113,7 @@ class Codec:
         "_classes",
         "_decode",
         "_encode",
+        "_per_byte",
         "_prefix",
         "fingerprint",
         "max_size",
@@ -124,6 +133,7 @@ class Codec:
         self.fingerprint = stack_fingerprint(layers, classes)
         self.max_size = max_size
         self._prefix = self.fingerprint.to_bytes(PREFIX, "big")
+        self._per_byte = max([_BYTES_PER_BYTE, *map(_struct_cost, _structs(classes))])
         if classes:
             union: Any = Union[tuple(classes)]  # noqa: UP007 - a union made at run time
             self._decode = msgspec.msgpack.Decoder(union, dec_hook=_decode_custom).decode
@@ -178,7 +188,7 @@ class Codec:
     @property
     def max_decode_bytes(self) -> int:
         """Most bytes decoding one datagram allocates at once (see the class docs)."""
-        return _BYTES_PER_BYTE * self.max_size + _DECODE_OVERHEAD
+        return self._per_byte * self.max_size + _DECODE_OVERHEAD
 
     def encode(self, msg: Message) -> bytes:
         """The datagram for ``msg``.
@@ -292,6 +302,43 @@ class Codec:
         except (msgspec.MsgspecError, IndexError, RecursionError):
             return None
         return self._by_tag.get(tag)
+
+
+def _structs(classes: tuple[type[Message], ...]) -> list[mi.StructType]:
+    """Every struct type a datagram of these classes can hold (the classes' own too)."""
+    found: dict[type, mi.StructType] = {}
+    pending: list[Any] = list(mi.multi_type_info(classes)) if classes else []
+    while pending:
+        node = pending.pop()
+        if isinstance(node, mi.StructType):
+            if node.cls in found:
+                continue
+            found[node.cls] = node
+            pending.extend(field.type for field in node.fields)
+        elif isinstance(node, mi.Type):
+            for name in node.__struct_fields__:
+                value = getattr(node, name)
+                pending.extend(value if isinstance(value, tuple) else (value,))
+    return list(found.values())
+
+
+def _struct_cost(node: mi.StructType) -> int:
+    """Most bytes a struct of this type costs per datagram byte that makes it.
+
+    The fewest bytes that make one: a one-byte array or map header, its tag if it
+    has one, and one byte per required field (the values read off the wire are
+    counted per byte anyway). What they cost: the struct's own object (with the
+    collector's header), its slot in a container, and one new object per
+    ``default_factory`` field (shared defaults cost nothing).
+    """
+    cost = node.cls.__basicsize__ + _GC_HEADER + _POINTER
+    fewest = 1 + (node.tag is not None)
+    for field in node.fields:
+        if field.required:
+            fewest += 1
+        elif field.default_factory is not msgspec.NODEFAULT:
+            cost += sys.getsizeof(field.default_factory())
+    return -(-cost // fewest)
 
 
 def _no_message(data: Any) -> Message:
