@@ -371,7 +371,9 @@ class ScenarioRun:
         """A last regular sample at ``t``, unless one was taken there (or later)."""
         times = self.trace.times
         if not len(times) or times[-1] < t:
-            self.trace.sample(t, self.environment.positions_at(t).xy, self._carrying())
+            carrying = self._carrying()
+            self.trace.sample(t, self.environment.positions_at(t).xy, carrying)
+            self._listeners.sampled(t, self.trace.at_time(t), carrying)  # the views' last frame
 
     def _carrying(self) -> npt.NDArray[np.bool_]:
         """Which robots of the trace carry something now, in the trace's row order."""
