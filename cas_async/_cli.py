@@ -64,11 +64,11 @@ from .scenario import (
     sweep_table,
 )
 from .scenario._atomic_files import remove_partial_files
-from .scenario._barrier import BarrierLoop
-from .scenario._distributed import World, run_worker
 from .scenario._report import summary_table, write_results
 from .scenario._sweep_plots import write_box_plots
 from .scenario._sweep_report import write_sweep_files
+from .scenario._worker import run_worker
+from .scenario._world import World
 from .transport._zenoh import import_zenoh
 
 __all__ = ["main"]
@@ -338,11 +338,7 @@ def _command_run(
     session.live = live
     with session.leaving_at_once():
         with interrupts.calling(session.request_stop):
-            if world is not None and scenario.run.virtual:
-                with asyncio.Runner(loop_factory=BarrierLoop) as runner:
-                    runner.run(session.drive(stop))
-            else:
-                run(session.drive(stop), virtual=scenario.run.virtual)
+            run(session.drive(stop), virtual=scenario.run.virtual)
         if session.refused is not None:
             print(f"error: {session.refused}", file=stderr)
             return EXIT_USAGE

@@ -149,16 +149,10 @@ class Swarm:
         is gone. Raises the first layer failure that ``run()`` did not raise; the
         others are attached to it as notes.
         """
-        self._running = False
-        running = [robot for robot in self if robot.state is RobotState.RUNNING]
-        for robot in running:
-            robot.stop()
         try:
-            await asyncio.gather(*(robot.halt() for robot in running))
+            await self.halt()
         finally:
-            for robot in running:
-                robot.close()
-        errors = [error for robot in running if (error := robot.take_failure()) is not None]
+            errors = self.close()
         if exc is not None:  # the block's own exception goes on, with ours noted on it
             for error in errors:
                 exc.add_note(f"meanwhile {error}")
@@ -167,6 +161,30 @@ class Swarm:
             for other in others:
                 first.add_note(f"also {other}")
             raise first
+
+    async def halt(self) -> None:
+        """First half of stopping: stops every running robot and waits until its layers ended.
+
+        The endpoints stay open (:meth:`close` is the second half), so no robot
+        sends to one that is gone while the others stop.
+        """
+        self._running = False
+        running = [robot for robot in self if robot.state is RobotState.RUNNING]
+        for robot in running:
+            robot.stop()
+        await asyncio.gather(*(robot.halt() for robot in running))
+
+    def close(self) -> list[BaseException]:
+        """Second half of stopping: closes every robot's endpoint; returns the layer failures.
+
+        Failures that ``run()`` did not raise, one per robot, first robot first:
+        the caller raises them (``async with`` raises the first, the others noted).
+        Robots opened but never started are closed too.
+        """
+        self._running = False
+        for robot in self:
+            robot.close()
+        return [error for robot in self if (error := robot.take_failure()) is not None]
 
     # -- membership --------------------------------------------------------------------
 

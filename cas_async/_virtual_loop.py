@@ -19,10 +19,33 @@ always uses this stdlib-based loop.
 from __future__ import annotations
 
 import asyncio
+import math
 import selectors
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final, Protocol
 
-__all__ = ["VirtualTimeLoop"]
+if TYPE_CHECKING:
+    from ._deliveries import Deliveries
+
+
+class Windows(Protocol):
+    """How a loop's time moves in windows: what :meth:`VirtualTimeLoop.run_windows` takes."""
+
+    @property
+    def end(self) -> float:
+        """The loop time the current window ends at (exclusive)."""
+
+    def closed(
+        self, next_event: float, selector: selectors.BaseSelector
+    ) -> list[tuple[selectors.SelectorKey, int]]:
+        """Every event before :attr:`end` has run; the next is at ``next_event``.
+
+        Called by the idle loop instead of jumping: it may open the next window
+        (move :attr:`end`) and return ``[]``, or wait on the real ``selector``
+        for other threads (another process's news) and return what it found.
+        """
+
+
+__all__ = ["VirtualTimeLoop", "Windows"]
 
 
 class _JumpingSelector(selectors.BaseSelector):
@@ -68,7 +91,13 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         self._virtual_now = 0.0
         self._idle_waiters: list[asyncio.Future[None]] = []
         self._busy_passes = 0
+        self._deliveries: Deliveries | None = None
+        self._windows: Windows | None = None
         super().__init__(_JumpingSelector(selectors.DefaultSelector(), self))
+
+    def host(self, deliveries: Deliveries) -> None:
+        """Runs ``deliveries``' actions at their instants, before the timers of that instant."""
+        self._deliveries = deliveries
 
     IDLE_PATIENCE: Final = 100_000
     """Busy passes after which :meth:`idle`'s futures fail: a task that never waits."""
@@ -114,16 +143,43 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
     def when_idle(
         self, timeout: float | None, selector: selectors.BaseSelector
     ) -> list[tuple[selectors.SelectorKey, int]]:
-        """What the idle loop does: jumps ``timeout`` ahead, or waits for a thread.
+        """What the idle loop does: jumps to its next event, or waits for a thread.
 
-        ``timeout`` is the time to the next timer (``None``: no timer). A loop whose
-        time is shared with other processes overrides this to ask them first (see
-        :mod:`cas_async.scenario._barrier`); ``selector`` is the real one, to wait on.
+        ``timeout`` is the time to the next timer (``None``: no timer); the next
+        event is that timer or the next of the loop's deliveries (see :meth:`host`),
+        whichever comes first. With windows (see :meth:`run_windows`), an event at
+        or after the window's end closes the window first. ``selector`` is the real
+        one, to wait on for other threads.
         """
+        scheduled: list[asyncio.TimerHandle] = self._scheduled  # type: ignore[attr-defined]
+        # The next timer's own instant (asyncio dropped cancelled ones from the head of
+        # its heap before it computed ``timeout``): ``now + timeout`` may miss it by a
+        # rounding, and a delivery of the timer's very instant must go first.
+        timer = scheduled[0].when() if timeout is not None and scheduled else math.inf
+        deliveries = self._deliveries
+        due = math.inf if deliveries is None else deliveries.next_at()
+        windows = self._windows
+        if windows is not None and min(timer, due) >= windows.end:
+            return windows.closed(min(timer, due), selector)
+        if due <= timer and due != math.inf:
+            assert deliveries is not None
+            self._virtual_now = max(self._virtual_now, due)
+            # The first callback of the pass: before the timers of the same instant.
+            self.call_soon(deliveries.run_due, self._virtual_now)
+            return []
         if timeout is None:  # no timer at all: only another thread can wake us
             return selector.select(None)
         self.advance(timeout)
         return []
+
+    def run_windows(self, windows: Windows | None) -> None:
+        """Moves time in ``windows`` from now on (``None``: freely again).
+
+        Every event before ``windows.end`` runs as usual; when the next event is at
+        or after it, the loop calls ``windows.closed`` instead of jumping there
+        (see :mod:`cas_async.scenario._windows`).
+        """
+        self._windows = windows
 
     def time(self) -> float:
         """The virtual time, in seconds."""

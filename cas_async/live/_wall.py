@@ -11,22 +11,22 @@ would let it race on. Two tools here:
   (the view's sockets, a signal's callback) without letting time move, since
   the sampler is ready to run again at the same instant. The robots only see
   the loop stand still: their results are the same with or without pacing.
-* :func:`wall_bounded` awaits something for at most some wall seconds, on any
-  loop (a thread's timer ends the wait: the loop's own clock may be virtual).
+* :func:`~cas_async._wall.wall_bounded` (re-exported here) awaits something for at
+  most some wall seconds, on any loop (a thread's timer ends the wait: the loop's
+  own clock may be virtual).
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
-import threading
 import time
-from collections.abc import Awaitable, Callable
-from typing import Final, TypeVar, final
+from collections.abc import Callable
+from typing import Final, final
+
+from .._wall import wall_bounded
 
 __all__ = ["Pacer", "wall_bounded"]
 
-T = TypeVar("T")
 
 SLICE: Final = 0.01
 """Wall seconds the loop is blocked at a time while a paced run waits."""
@@ -84,27 +84,3 @@ class Pacer:
             later = self._wall_clock()
             self.held += later - now
             now = later
-
-
-async def wall_bounded(aw: Awaitable[T], seconds: float) -> T | None:
-    """Awaits ``aw`` for at most ``seconds`` of wall time; ``None`` when the time ran out."""
-    task = asyncio.ensure_future(aw)
-    loop = asyncio.get_running_loop()
-    expired = threading.Event()
-
-    def expire() -> None:
-        expired.set()
-        with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
-            loop.call_soon_threadsafe(task.cancel)
-
-    timer = threading.Timer(seconds, expire)
-    timer.daemon = True
-    timer.start()
-    try:
-        return await task
-    except asyncio.CancelledError:
-        if expired.is_set():
-            return None
-        raise
-    finally:
-        timer.cancel()

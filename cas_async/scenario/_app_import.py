@@ -21,7 +21,7 @@ from ._layers import importable_from
 
 __all__ = ["RESERVED", "import_app", "robot_counts"]
 
-RESERVED: Final = frozenset({"app", "faults", "layers", "run", "world"})
+RESERVED: Final = frozenset({"app", "faults", "layers", "network", "run", "world"})
 """The scenario's own keys: an app's ``config_type`` may not use them."""
 _MISSING: Final = object()
 _IMPORT_PATH: Final = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?")

@@ -48,7 +48,7 @@ import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Final, Literal
 
 import numpy as np
 
@@ -66,6 +66,7 @@ from ._layers import layer_classes
 
 __all__ = [
     "FaultsConfig",
+    "NetworkConfig",
     "RunConfig",
     "Scenario",
     "WorldConfig",
@@ -100,6 +101,11 @@ class RunConfig:
             :mod:`cas_async._supervision`) within ``restart_window`` simulated
             seconds; 0 (the default): the first failure fails the run.
         restart_window: the window over which ``restarts`` are counted.
+        partition: across processes, which worker runs which robot: ``"region"``
+            (strips of the world, neighbours together) or ``"round_robin"`` (see
+            :mod:`cas_async.scenario._partition`). Results do not depend on it.
+        window_limit: across processes, wall seconds the world waits for a window
+            (or a worker's start) before it fails the run, naming who it waited for.
     """
 
     seed: int = setting(0, ge=0, doc="seed of the run's random generator")
@@ -123,6 +129,12 @@ class RunConfig:
     restart_window: float = setting(
         60.0, gt=0, doc="simulated seconds over which restarts are counted"
     )
+    partition: Literal["region", "round_robin"] = setting(
+        "region", doc="across processes: robots by region of the world, or in turn"
+    )
+    window_limit: float = setting(
+        30.0, gt=0, le=3600, doc="across processes: wall seconds a window may take at most"
+    )
 
     @property
     def restart(self) -> RestartPolicy | None:
@@ -130,6 +142,31 @@ class RunConfig:
         if not self.restarts:
             return None
         return RestartPolicy(self.restarts, self.restart_window)
+
+
+DEFAULT_LATENCY: Final = 0.0
+"""Simulated seconds of the network model when a scenario says nothing (see NetworkConfig)."""
+
+
+@dataclass(frozen=True, slots=True)
+class NetworkConfig:
+    """The simulation's network model: the optional ``[network]`` table.
+
+    Attributes:
+        latency: simulated seconds any effect takes from one robot to another: a
+            datagram sent at ``t`` is delivered at ``t + latency``, a motion is seen
+            by the others ``latency`` after it started, an item handed over arrives
+            ``latency`` later (see :mod:`cas_async._deliveries`). It is what lets a
+            run spread over processes go a window of ``latency`` without asking the
+            others, and give the very results of a run in one process. 0: every
+            effect at once, in one process only. Over UDP or Zenoh (scaled real
+            time) datagrams take the real network's own latency; the Environment's
+            motions and items keep the model's.
+    """
+
+    latency: float = setting(
+        DEFAULT_LATENCY, ge=0, le=60, doc="simulated seconds from one robot to another"
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -194,6 +231,7 @@ class Scenario:
         faults: the ``[faults]`` table (no faults when absent).
         layers: the classes ``[layers]`` puts in place of the app's own, by slot
             name (checked; empty when absent).
+        network: the ``[network]`` table.
     """
 
     path: Path
@@ -205,10 +243,15 @@ class Scenario:
     data: dict[str, Any]
     faults: FaultsConfig = FaultsConfig()
     layers: Mapping[str, type[Layer]] = field(default_factory=dict)
+    network: NetworkConfig = NetworkConfig()
 
     def clock(self) -> Clock:
         """A new clock for a run: virtual, or scaled by ``run.time_factor``."""
         return VirtualClock() if self.run.virtual else ScaledClock(self.run.time_factor)
+
+    def environment(self, clock: Clock) -> Environment:
+        """A new, empty Environment for a run on ``clock``, with the ``[network]`` latency."""
+        return Environment(latency=self.network.latency, clock=clock)
 
     def setup(
         self, environment: Environment, clock: Clock, transport: Transport
@@ -380,6 +423,7 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
     run = _section(RunConfig, run_table, "run", problems)
     world = _section(WorldConfig, data.get("world", {}), "world", problems)
     faults = _section(FaultsConfig, data.get("faults", {}), "faults", problems)
+    network = _section(NetworkConfig, data.get("network", {}), "network", problems)
     if faults is not None and faults.delay[0] > faults.delay[1]:
         problems.append(
             ("faults.delay", f"expected [min, max] with min <= max, got {show(faults.delay)}")
@@ -414,7 +458,7 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
                 "[faults] act on datagrams (bytes): turn pass_objects off to use them",
             )
         )
-    if problems or app is None or run is None or world is None or faults is None:
+    if problems or app is None or run is None or world is None or faults is None or network is None:
         raise ScenarioError(problems)
     # Sizes before anything that takes time or memory in proportion to them.
     too_many = capacity_problems(
@@ -426,7 +470,7 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
     if too_many:
         raise ScenarioError(too_many)
     app.check(config, (world.width, world.height))
-    return Scenario(path, app_path, app, run, world, config, data, faults, layers)
+    return Scenario(path, app_path, app, run, world, config, data, faults, layers, network)
 
 
 def _section(

@@ -13,7 +13,7 @@ from ..transport._udp import UdpTransport
 from ..transport._zenoh import ZenohTransport
 from ._loader import Scenario
 
-__all__ = ["check_key", "run_transport"]
+__all__ = ["check_key", "faulty", "run_transport"]
 
 
 def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
@@ -31,7 +31,9 @@ def run_transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Tra
     check_key(scenario, key)
     transport: Transport
     if run.transport == "memory":
-        transport = MemoryTransport(pass_objects=run.pass_objects)
+        transport = MemoryTransport(
+            pass_objects=run.pass_objects, latency=scenario.network.latency, clock=clock
+        )
     elif run.transport == "zenoh":
         if run.virtual:
             raise ConfigurationError(
@@ -41,8 +43,14 @@ def run_transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Tra
         transport = ZenohTransport()
     else:
         transport = UdpTransport()
-    faults = scenario.faults.as_faults()
-    if faults.any:
-        seed = run.seed if scenario.faults.seed is None else scenario.faults.seed
-        transport = FaultyTransport(transport, faults, seed=seed, clock=clock)
+    transport = faulty(scenario, transport, clock)
     return transport if key is None else AuthenticatedTransport(transport, key)
+
+
+def faulty(scenario: Scenario, transport: Transport, clock: Clock) -> Transport:
+    """``transport`` with the scenario's ``[faults]`` on its wire, if it has any."""
+    faults = scenario.faults.as_faults()
+    if not faults.any:
+        return transport
+    seed = scenario.run.seed if scenario.faults.seed is None else scenario.faults.seed
+    return FaultyTransport(transport, faults, seed=seed, clock=clock)

@@ -29,21 +29,25 @@ from .._clock import Clock
 from .._errors import ConfigurationError, LayerError
 from .._swarm import Swarm
 from .._swarm_key import SwarmKey
+from .._virtual_loop import VirtualTimeLoop
 from ..sim._environment import Environment
 from ..transport._authenticated import AuthenticatedTransport
 from ..transport._faulty import FaultyTransport
 from ._app import Mission
-from ._distributed import World
 from ._gc_policy import young_generation_for
 from ._layers import check_built
 from ._listener import Listeners, RunListener
 from ._loader import Scenario
 from ._measure import mark_failed, measure_end, measure_positions
 from ._objective import CallbackWatch, Items, Objective, not_distributable
+from ._observer import Observer, mirror_of
 from ._progress import Progress
 from ._results import RunProgress, RunResult, RunStatus
 from ._run_transport import run_transport
 from ._trace import Trace, TraceCsv
+from ._windowed import WindowedRun
+from ._windows import Held
+from ._world import World
 
 __all__ = ["ScenarioRun", "run_scenario"]
 
@@ -105,12 +109,12 @@ class ScenarioRun:
         self._scenario = scenario
         self._stop = asyncio.Event() if stop is None else stop  # interrupt() sets it too
         run = scenario.run
-        self.environment = environment = Environment()
         self._clock = clock = scenario.clock()
+        environment = scenario.environment(clock)
+        self._complete = asyncio.Event()
         if world is None:
             self._transport = run_transport(scenario, clock, key)
         else:  # the robots run in the workers: these copies never start
-            world.use_clock(clock)
             self._transport = world.transport()
         self._mission = mission = scenario.app.build(
             scenario.setup(environment, clock, self._transport)
@@ -122,6 +126,32 @@ class ScenarioRun:
         self._objective = objective = _objective_of(mission, scenario)
         if world is not None and not objective.distributable:
             raise ConfigurationError(not_distributable(scenario.path, scenario.app.name, objective))
+        self._windowed: WindowedRun | None = None
+        # An objective that reads the Environment only (distributable) may read a mirror.
+        if (
+            run.virtual
+            and scenario.network.latency > 0
+            and world is None
+            and objective.distributable
+        ):
+            self._windowed = WindowedRun(
+                scenario, environment, clock, self._sample_held, self._complete.is_set
+            )
+            environment = self._windowed.mirror
+        self._observer: Observer | None = None
+        if world is not None:  # the workers' robots, observed in a mirror of them
+            world.adopt(environment, mission)
+            mirror = mirror_of(environment)
+            self._observer = Observer(
+                mirror, run.trace_interval, self._sample_held, self._complete.is_set
+            )
+            environment = mirror
+        self.environment = environment
+        """What the run observes of its robots: their poses, motions and items.
+
+        With a network latency on virtual time (and an objective that reads only
+        the Environment), a mirror of the robots' own, which follows them window
+        by window (see :mod:`cas_async.scenario._observer`); else theirs."""
         self._progress = None
         if progress_to is not None:
             self._progress = Progress(
@@ -147,7 +177,6 @@ class ScenarioRun:
         self.trace = Trace(environment.robot_ids)
         """Where the robots were over simulated time."""
         self._rows = np.array(self.trace.ids, dtype=np.int64)
-        self._complete = asyncio.Event()
         objective.attach(
             CallbackWatch(
                 environment,
@@ -159,8 +188,6 @@ class ScenarioRun:
         )
         if observe is not None:
             observe(environment)
-        if world is not None:
-            world.adopt(environment, mission)
         self._swarm = Swarm(mission.robots if world is None else ())
         self._listeners = Listeners()
         self._started_swarm = False
@@ -229,6 +256,12 @@ class ScenarioRun:
         # While the swarm runs, the collector's youngest generation is sized to it.
         self._gc.enter_context(young_generation_for(len(self._swarm)))
         try:
+            if self._windowed is not None:
+                self._windowed.start()  # before any robot's first instant
+            if self._world is not None and self._scenario.run.virtual:
+                loop = asyncio.get_running_loop()
+                if isinstance(loop, VirtualTimeLoop):  # no robots here: time stands still
+                    loop.run_windows(Held())
             starting = asyncio.ensure_future(
                 self._swarm.__aenter__() if self._world is None else self._world.start()
             )
@@ -262,8 +295,20 @@ class ScenarioRun:
         if not self._started_swarm:  # stopped while starting
             return self._end(RunStatus.INTERRUPTED, None)
         try:
+            if self._windowed is not None:
+                status, failure = await self._windowed.until_done(
+                    self._swarm.run(), self._complete, self._stop
+                )
+                return self._end(status, failure)
+            world, observer = self._world, self._observer
+            if world is not None and observer is not None and self._scenario.run.virtual:
+                status, failure = await world.coordinate(
+                    observer, self._complete.is_set, self._stop
+                )
+                await world.finish()  # the workers stop, and send their counts
+                return self._end(status, failure)
             status, failure = await _until_done(
-                self._swarm.run() if self._world is None else self._world.running(),
+                self._swarm.run() if world is None or observer is None else world.follow(observer),
                 self._clock,
                 self._scenario.run.max_time,
                 self._scenario.run.trace_interval,
@@ -299,6 +344,8 @@ class ScenarioRun:
         if self._ended:
             return result
         self._ended = True
+        if self._windowed is not None:
+            self._windowed.stop()
         result.status = status
         if failure is not None:
             mark_failed(result, failure)
@@ -308,7 +355,7 @@ class ScenarioRun:
             self._objective,
             self._message_counts(),
             self.environment,
-            self._clock.now(),
+            self._end_instant(status),
         )
         if status is RunStatus.COMPLETED and result.makespan is not None:
             self._sample_last(result.makespan)  # the trace ends where the mission did
@@ -366,6 +413,35 @@ class ScenarioRun:
             self._progress.update(t, done, detail)
         if self._trace_csv is not None:
             self._trace_csv.write_until(t)  # what came before this sample is final
+
+    def _end_instant(self, status: RunStatus) -> float:
+        """The simulated instant the run ended at, as its results count it.
+
+        Observed window by window (a latency on virtual time, in one process or
+        many), the run is measured where its mirror is: at the completion, at
+        ``max_time``, or at the last window's end, the same for any number of
+        processes. Otherwise, now.
+        """
+        observer = self._observer
+        observed = (
+            self._windowed.observed_until
+            if self._windowed is not None
+            else observer.until
+            if observer is not None and self._scenario.run.virtual
+            else None
+        )
+        if observed is None:
+            return self._clock.now()
+        if status is RunStatus.COMPLETED and self.result.makespan is not None:
+            return self.result.makespan
+        if status is RunStatus.TIMED_OUT:
+            return self._scenario.run.max_time
+        return observed
+
+    async def _sample_held(self, t: float) -> None:
+        """A sample at ``t``, then what the listeners hold the run for (a paced view)."""
+        self._sample(t)
+        await self._listeners.hold(t)
 
     def _sample_last(self, t: float) -> None:
         """A last regular sample at ``t``, unless one was taken there (or later)."""

@@ -16,18 +16,31 @@ of each other, and a robot holding items cannot leave.
 
 Application layers never touch it: a robotic layer reaches it through a
 :class:`~cas_async.sim._middleware.SimulatedMiddleware`.
+
+With a ``latency`` (the simulation's network model: the least simulated time any
+effect needs to go from one robot to another), a robot's motion is *seen* by the
+others only ``latency`` after it started: range queries (:meth:`within`) place the
+asker where it really is and every other robot where its last motion seen says it
+is, the motion it was on ``latency`` ago carried on to now (dead reckoning, as a
+robot does with a neighbour's last broadcast). The motions seen change at their
+instants in a fixed order (see :mod:`cas_async._deliveries`), so what a robot
+senses does not depend on which robots share its process. Item hand-overs take
+the latency too (see :meth:`hand_over`).
 """
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Final
+from typing import Final, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
+from .._clock import Clock
+from .._deliveries import ITEM, MOTION, RECEIPT, Deliveries
 from .._errors import ConfigurationError, SimulationError, UnknownRobotError
 from .._pose import Pose
 from .._positions import Positions
@@ -65,6 +78,11 @@ class _Robot:
     odometer: float = 0.0  # distance translated by the motions before the current one
     # Robots this one takes items from; None: from anyone (see Environment.accept_from).
     accepting: set[RobotId] | None = None
+    local: bool = True  # its motions start here (else they are only seen, see see_motion)
+    motions: int = 0  # motions started so far: their order within an instant
+    sent: int = 0  # items sent so far, and answers given: their order within an instant
+    seen: Motion | None = None  # with a latency: the motion the others see
+    seen_since: float = -math.inf
 
     def travelled(self, t: float) -> float:
         """Total distance translated up to instant ``t``."""
@@ -73,6 +91,37 @@ class _Robot:
         if self.motion.length == 0:
             return self.odometer
         return self.odometer + self.motion.travelled(t - self.since)
+
+
+class Courier(Protocol):
+    """Takes a hand-over's steps to robots of other processes (see ``Environment.set_local``)."""
+
+    def arrive(
+        self,
+        at: float,
+        item: ItemId,
+        giver: RobotId,
+        receiver: RobotId,
+        sent: float,
+        reach: float,
+        n: int,
+    ) -> None:
+        """The item reaches ``receiver`` (another process's robot) at ``at``."""
+
+    def receipt(
+        self,
+        at: float,
+        item: ItemId,
+        giver: RobotId,
+        receiver: RobotId,
+        n: int,
+        refused: str | None,
+        answer: int,
+    ) -> None:
+        """The answer to hand-over ``n`` reaches ``giver`` (another process's robot) at ``at``.
+
+        ``answer`` is the receiver's own count of answers: their order within an instant.
+        """
 
 
 class Environment:
@@ -86,17 +135,39 @@ class Environment:
         cell_size: the side of the range-query grid's cells (see :meth:`within`);
             ``None``: the radius of the first query with a finite radius > 0, which
             suits an application whose robots mostly ask within one radius.
+        latency: simulated seconds before a robot's motion is seen by the others,
+            and an item handed over arrives (see the module docs); 0: at once.
+        clock: the robots' clock (needed with a latency: it says when an instant
+            comes on the event loop).
 
     Raises:
-        ValueError: ``cell_size`` is not a finite number > 0.
+        ValueError: ``cell_size`` is not a finite number > 0, ``latency`` is not a
+            finite number >= 0, or a latency comes without a clock.
     """
 
-    def __init__(self, *, cell_size: float | None = None) -> None:
+    def __init__(
+        self,
+        *,
+        cell_size: float | None = None,
+        latency: float = 0.0,
+        clock: Clock | None = None,
+    ) -> None:
         if cell_size is not None and not (math.isfinite(cell_size) and cell_size > 0):
             raise ValueError(f"cell_size must be a finite number > 0, got {cell_size!r}")
+        if not (math.isfinite(latency) and latency >= 0):
+            raise ValueError(f"latency must be a finite number >= 0, got {latency!r}")
+        if latency > 0 and clock is None:
+            raise ValueError("an Environment with a latency needs the robots' clock")
+        self.latency = latency
+        """Simulated seconds before others see a motion, and a handed item arrives."""
+        self._clock = clock
         self._robots: dict[RobotId, _Robot] = {}
-        self._items = ItemLedger()
+        self._items = ItemLedger(ids_by_creator=latency > 0)
+        self._sending: dict[tuple[RobotId, int], asyncio.Future[None]] = {}  # hand-overs
+        self._courier: Courier | None = None
         self._table = SegmentTable()
+        # With a latency: the motions the others see (own rows are never read from it).
+        self._seen = SegmentTable() if latency > 0 else None
         self._cell_size = cell_size
         # Built at the first query that uses it, then kept up to date motion by
         # motion; None again after a robot is removed (rows are renumbered).
@@ -168,8 +239,10 @@ class Environment:
             raise ConfigurationError(f"robot {robot_id} is already in the environment")
         motion = Motion.standing(pose)
         index = len(self._robots)
-        self._robots[robot_id] = _Robot(index, mobile, motion, -math.inf)
+        self._robots[robot_id] = _Robot(index, mobile, motion, -math.inf, seen=motion)
         self._table.append(-math.inf, motion)
+        if self._seen is not None:
+            self._seen.append(-math.inf, motion)
         if self._grid is not None:
             self._grid.place(index, pose.x, pose.y, pose.x, pose.y)
         self._ids = self._cache = None
@@ -190,10 +263,34 @@ class Environment:
             )
         del self._robots[robot_id]
         self._table.delete(gone.index)
+        if self._seen is not None:
+            self._seen.delete(gone.index)
         for robot in self._robots.values():
             if robot.index > gone.index:
                 robot.index -= 1
         self._ids = self._cache = self._grid = None
+
+    def set_local(self, robots: set[RobotId], courier: Courier | None = None) -> None:
+        """Only ``robots`` move in this process; the others' motions are only seen.
+
+        For a simulation spread over processes: a motion of another process's robot
+        comes in through :meth:`see_motion`, at the instant it is seen here; the
+        ledger keeps the items of ``robots`` only (items come and go, see
+        :class:`ItemLedger`), and ``courier`` takes a hand-over's steps to the other
+        robots (their processes call :meth:`item_arrives` and :meth:`item_receipt`).
+
+        Raises:
+            UnknownRobotError: a robot of ``robots`` is not in the environment.
+            SimulationError: items were made already (the ledger must start partial).
+        """
+        for robot_id in robots:
+            self._robot(robot_id)
+        if self._items.created or self._items.events:
+            raise SimulationError("set the local robots before any item is made")
+        for robot_id, robot in self._robots.items():
+            robot.local = robot_id in robots
+        self._items = ItemLedger(partial=True)
+        self._courier = courier
 
     def is_mobile(self, robot_id: RobotId) -> bool:
         """Whether the robot can move (see :meth:`add_robot`)."""
@@ -245,14 +342,48 @@ class Environment:
         robot.odometer = robot.travelled(start_time)
         robot.motion, robot.since = motion, start_time
         self._table.set(robot.index, start_time, motion)
-        if self._grid is not None:
-            # The robot is on this segment at every instant from now on.
-            self._grid.place(
-                robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y
+        seen = self._seen
+        if seen is None:
+            if self._grid is not None:
+                # The robot is on this segment at every instant from now on.
+                self._grid.place(
+                    robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y
+                )
+        elif robot.local:  # the others see it once the latency has passed
+            robot.motions += 1
+            self._at(
+                start_time + self.latency,
+                (MOTION, robot_id, robot.motions),
+                lambda: self.see_motion(robot_id, motion, start_time),
             )
         self._cache = None
         for watcher in self._motion_watchers:
             watcher(robot_id, motion, start_time)
+
+    def see_motion(self, robot_id: RobotId, motion: Motion, start_time: float) -> None:
+        """The others see the robot's motion that started at ``start_time`` from now on.
+
+        Called once its latency has passed: by the environment itself for its own
+        robots, and by whoever brings another process's motions for the others (it
+        is then also their motion here, see :meth:`set_local`). Without a latency,
+        motions are seen as they start and this only starts the motion.
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: as :meth:`start_motion`, for another process's robot.
+        """
+        robot = self._robot(robot_id)
+        if not robot.local:
+            self.start_motion(robot_id, motion, start_time)
+        seen = self._seen
+        if seen is None:
+            return
+        robot.seen, robot.seen_since = motion, start_time
+        seen.set(robot.index, start_time, motion)
+        if self._grid is not None:
+            self._grid.place(
+                robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y
+            )
 
     def halt(self, robot_id: RobotId, t: float) -> Pose:
         """Stops the robot where it is at ``t``; it stands there from ``t`` on.
@@ -320,12 +451,21 @@ class Environment:
         if not radius >= 0:
             raise SimulationError(f"radius must be >= 0, got {radius!r}")
         _check_instant(t)
+        seen = self._seen
         near = self._near(index, radius, t)
         if near is None:
-            everyone = self.positions_at(t)
-            return _nearest_first(everyone.ids, everyone.xy, everyone.xy[index], radius, index)
+            if seen is None:
+                everyone = self.positions_at(t)
+                return _nearest_first(everyone.ids, everyone.xy, everyone.xy[index], radius, index)
+            xy = seen.positions(t)
+            xy[index] = self._table.positions_of(t, np.array([index], dtype=np.intp))[0]
+            return _nearest_first(self._row_ids(), xy, xy[index], radius, index)
         rows = np.fromiter((index, *near), dtype=np.intp, count=len(near) + 1)
-        xy = self._table.positions_of(t, rows)
+        if seen is None:
+            xy = self._table.positions_of(t, rows)
+        else:  # the asker where it is, the others where they are seen
+            xy = seen.positions_of(t, rows)
+            xy[0] = self._table.positions_of(t, rows[:1])[0]
         return _nearest_first(self._row_ids()[rows], xy, xy[0], radius, 0)
 
     def _near(self, index: int, radius: float, t: float) -> set[int] | None:
@@ -353,9 +493,10 @@ class Environment:
 
     def _build_grid(self, cell: float) -> CellGrid:
         grid = CellGrid(cell)
+        seen = self._seen is not None  # then the grid files where the others are seen
         for robot in self._robots.values():
-            start, end = robot.motion.start, robot.motion.end
-            grid.place(robot.index, start.x, start.y, end.x, end.y)
+            motion = robot.seen if seen and robot.seen is not None else robot.motion
+            grid.place(robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y)
         return grid
 
     def _row_ids(self) -> npt.NDArray[np.int64]:
@@ -439,6 +580,125 @@ class Environment:
                 f" (it takes them from {sorted(accepting)})"
             )
         self._items.transfer(item, giver, receiver, t)
+
+    async def send_item(
+        self, item: ItemId, giver: RobotId, receiver: RobotId, t: float, *, reach: float
+    ) -> None:
+        """Hands ``item`` from ``giver`` to ``receiver`` over the latency: returns once it is known.
+
+        With a latency ``L`` (see the module docs) the item leaves the giver at ``t``
+        and reaches the receiver at ``t + L``. It is taken there if the receiver's
+        hands are held out to the giver then and the two are within ``reach`` (the
+        receiver where it is, the giver where it is seen); else it travels back and
+        is the giver's again at ``t + 2L``. The giver learns the outcome at ``t + 2L``
+        either way: this returns then, or raises ``SimulationError`` saying why the
+        receiver refused it. Without a latency it is :meth:`hand_over`.
+
+        Raises:
+            UnknownRobotError: either robot is not in the environment.
+            SimulationError: ``reach`` is negative or NaN, ``t`` is not finite, the
+                giver does not hold the item, or the receiver refused it.
+        """
+        if self._seen is None:
+            self.hand_over(item, giver, receiver, t, reach=reach)
+            return
+        self._robot(receiver)
+        if not reach >= 0:
+            raise SimulationError(f"reach must be >= 0, got {reach!r}")
+        if not math.isfinite(t):
+            raise SimulationError(f"a hand-over's t must be a finite number, got {t!r}")
+        self._items.send(item, giver, receiver, t)
+        entry = self._robot(giver)
+        entry.sent += 1
+        n = entry.sent
+        outcome: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._sending[(giver, n)] = outcome
+        at = t + self.latency
+        if self._robot(receiver).local:
+            self._at(
+                at, (ITEM, giver, n), lambda: self.item_arrives(item, giver, receiver, t, reach, n)
+            )
+        else:
+            assert self._courier is not None  # set_local() gave one with the remote robots
+            self._courier.arrive(at, item, giver, receiver, t, reach, n)
+        try:
+            await outcome
+        finally:
+            self._sending.pop((giver, n), None)
+
+    def item_arrives(
+        self, item: ItemId, giver: RobotId, receiver: RobotId, sent: float, reach: float, n: int
+    ) -> None:
+        """Hand-over ``n`` of ``giver`` (sent at ``sent``) reaches ``receiver`` now, ``sent + L``.
+
+        Taken or refused here (see :meth:`send_item`); the answer goes back to the giver.
+        """
+        t = sent + self.latency
+        refused = self._refusal(item, giver, receiver, t, reach)
+        if refused is None:
+            self._items.arrive(item, giver, receiver, t)
+        else:
+            self._items.refuse(item, giver, receiver, t)
+        entry = self._robot(receiver)
+        entry.sent += 1
+        at = t + self.latency
+        if self._robot(giver).local:
+            self._at(
+                at,
+                (RECEIPT, receiver, entry.sent),
+                lambda: self.item_receipt(item, giver, receiver, n, refused),
+            )
+        else:
+            assert self._courier is not None
+            self._courier.receipt(at, item, giver, receiver, n, refused, entry.sent)
+
+    def item_receipt(
+        self, item: ItemId, giver: RobotId, receiver: RobotId, n: int, refused: str | None
+    ) -> None:
+        """The answer to ``giver``'s hand-over ``n`` reaches it now: the item is back if refused."""
+        if refused is not None:
+            self._items.returned(item, giver, self._robot_time(giver))
+        elif not self._robot(receiver).local:
+            self._items.handed_away(item)  # it is the other process's ledger's now
+        outcome = self._sending.get((giver, n))
+        if outcome is not None and not outcome.done():
+            if refused is None:
+                outcome.set_result(None)
+            else:
+                outcome.set_exception(SimulationError(refused))
+
+    def _refusal(
+        self, item: ItemId, giver: RobotId, receiver: RobotId, t: float, reach: float
+    ) -> str | None:
+        """Why ``receiver`` refuses ``item`` from ``giver`` arriving at ``t``, or ``None``."""
+        accepting = self._robot(receiver).accepting
+        if accepting is not None and giver not in accepting:
+            return (
+                f"robot {receiver} does not take items from robot {giver} at {t!r}"
+                f" (it takes them from {sorted(accepting)})"
+            )
+        here = self.pose_at(receiver, t)
+        seen = self._seen
+        assert seen is not None
+        x, y = seen.positions_of(t, np.array([self._robot(giver).index], dtype=np.intp))[0].tolist()
+        distance = math.hypot(here.x - x, here.y - y)
+        if distance > reach:
+            return (
+                f"robot {giver} at ({x!r}, {y!r}) cannot hand item {item} to robot {receiver} "
+                f"at ({here.x!r}, {here.y!r}) at {t!r}: they are {distance!r} apart, beyond "
+                f"the reach of {reach!r}"
+            )
+        return None
+
+    def _robot_time(self, robot_id: RobotId) -> float:
+        """Now, in simulated time (what the clock says)."""
+        assert self._clock is not None
+        return self._clock.now()
+
+    def _at(self, t: float, key: tuple[object, ...], action: Callable[[], None]) -> None:
+        """Runs ``action`` at simulated instant ``t``, in ``key`` order (see ``_deliveries``)."""
+        assert self._clock is not None  # a latency comes with a clock
+        Deliveries.of().at(self._clock.loop_time_at(t), key, action)
 
     def accept_from(self, receiver: RobotId, giver: RobotId) -> None:
         """From now on ``receiver`` takes items from ``giver`` (and only from the givers so named).

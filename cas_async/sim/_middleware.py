@@ -268,7 +268,8 @@ class SimulatedHands(Hands):
                 item, self._robot_id, receiver, self._clock.now(), reach=self._reach
             )
             return
-        self._environment.hand_over(
+        # Over the Environment's latency, if it has one: the outcome comes back later.
+        await self._environment.send_item(
             item, self._robot_id, receiver, self._clock.now(), reach=self._reach
         )
 

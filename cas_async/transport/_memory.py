@@ -19,6 +19,11 @@ Nothing sent is lost without a count.
 
 Membership: when a robot opens its endpoint, every robot already on the
 transport is told it joined; when it closes, the others are told it left.
+
+With a ``latency``, a datagram sent at simulated instant ``t`` is delivered at
+``t + latency`` instead (a simulation's network model, see
+:mod:`cas_async._deliveries`): the datagrams of one instant reach a robot ordered by
+sender, then by the order each sender sent them, whatever order the robots ran in.
 """
 
 from __future__ import annotations
@@ -27,7 +32,9 @@ import asyncio
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, final
 
+from .._clock import Clock
 from .._codec import DEFAULT_MAX_DATAGRAM
+from .._deliveries import DATAGRAM, Deliveries
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .._types import Address, RobotId
 from .._wire_codec import PassThrough
@@ -47,19 +54,27 @@ class MemoryEndpoint(Endpoint):
     __slots__ = (
         "_batch",
         "_closed",
+        "_delay",
+        "_deliveries",
         "_loop",
         "_network",
+        "_sent",
         "_sink",
         "max_datagram_size",
         "robot_id",
     )
 
-    def __init__(self, network: MemoryTransport, robot_id: RobotId, sink: DatagramSink) -> None:
+    def __init__(
+        self, network: MemoryTransport, robot_id: RobotId, sink: DatagramSink, delay: float
+    ) -> None:
         self._network = network
         self._sink = sink
-        self._loop = asyncio.get_running_loop()
+        self._loop = loop = asyncio.get_running_loop()
         self._closed = False
         self._batch: list[tuple[bytes, RobotId]] | None = None  # sent, not yet delivered
+        self._delay = delay  # loop seconds between a send and its delivery (0: next pass)
+        self._deliveries = Deliveries.of(loop) if delay > 0 else None
+        self._sent = 0  # this robot's datagrams so far: their order within an instant
         self.robot_id = robot_id
         self.max_datagram_size = network.max_datagram_size
 
@@ -73,6 +88,16 @@ class MemoryEndpoint(Endpoint):
         target = self._network._endpoints.get(robot_id)
         if target is None:
             raise UnknownRobotError(f"no robot {robot_id} on this MemoryTransport")
+        deliveries = self._deliveries
+        if deliveries is not None:
+            self._sent += 1
+            sender = self.robot_id
+            deliveries.at(
+                self._loop.time() + self._delay,
+                (DATAGRAM, sender, self._sent),
+                lambda: target.receive(data, sender),
+            )
+            return
         batch = target._batch
         if batch is None:
             batch = target._batch = []
@@ -92,6 +117,15 @@ class MemoryEndpoint(Endpoint):
                 self._loop.call_exception_handler(
                     {"message": f"robot {self.robot_id}: sink failed", "exception": exc}
                 )
+
+    def receive(self, data: bytes, sender: RobotId) -> None:
+        """A datagram whose latency is over: to the sink (also after close: it counts it)."""
+        try:
+            self._sink.datagram_received(data, sender)
+        except Exception as exc:  # a broken sink must not stop the other deliveries
+            self._loop.call_exception_handler(
+                {"message": f"robot {self.robot_id}: sink failed", "exception": exc}
+            )
 
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._network._endpoints if rid != self.robot_id]
@@ -135,13 +169,34 @@ class MemoryTransport(Transport):
             (see :mod:`cas_async._wire_codec`): faster, but without the size limit and
             encodability checks of a network, so a message that would be refused
             over UDP goes through. Robots on it must run identical stacks.
+        latency: simulated seconds between a send and its delivery (see the module
+            docs); 0 delivers on the loop's next pass.
+        clock: the robots' clock, which says how long ``latency`` lasts on the loop
+            (needed with a latency).
+
+    Raises:
+        ConfigurationError: a negative or non-finite latency, or a latency without
+            a clock.
     """
 
     supports_virtual_time = True
 
     def __init__(
-        self, max_datagram_size: int = DEFAULT_MAX_DATAGRAM, *, pass_objects: bool = False
+        self,
+        max_datagram_size: int = DEFAULT_MAX_DATAGRAM,
+        *,
+        pass_objects: bool = False,
+        latency: float = 0.0,
+        clock: Clock | None = None,
     ) -> None:
+        if not (0.0 <= latency < float("inf")):
+            raise ConfigurationError(
+                f"MemoryTransport latency must be >= 0 simulated seconds, got {latency!r}"
+            )
+        if latency > 0 and clock is None:
+            raise ConfigurationError("a MemoryTransport with a latency needs the robots' clock")
+        self.latency = latency
+        self._clock = clock
         self.max_datagram_size = max_datagram_size
         self.pass_objects = pass_objects
         self._pass_through: PassThrough | None = None  # made for the first robot, shared
@@ -156,7 +211,8 @@ class MemoryTransport(Transport):
             )
         for other in list(self._followers.values()):
             other.told_joined(robot_id)
-        endpoint = self._endpoints[robot_id] = MemoryEndpoint(self, robot_id, sink)
+        delay = 0.0 if self._clock is None else self._clock.loop_seconds(self.latency)
+        endpoint = self._endpoints[robot_id] = MemoryEndpoint(self, robot_id, sink, delay)
         return endpoint
 
     def wire_codec(self, robot_id: RobotId, codec: Codec) -> WireCodec:
@@ -175,4 +231,5 @@ class MemoryTransport(Transport):
 
     def __repr__(self) -> str:
         kind = ", passing objects" if self.pass_objects else ""
-        return f"MemoryTransport({len(self._endpoints)} robots{kind})"
+        latency = f", latency {self.latency:g} s" if self.latency else ""
+        return f"MemoryTransport({len(self._endpoints)} robots{kind}{latency})"

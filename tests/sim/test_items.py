@@ -279,7 +279,7 @@ def test_the_local_check_can_be_turned_off() -> None:
     book.create(10, 0.0)
     forget_to_drop(book)
     book.retire(1, 10, 1.0)  # not noticed by the event...
-    with pytest.raises(SimulationError, match="robot 10 lists item 1, whose holder is nobody"):
+    with pytest.raises(SimulationError, match="item 1 was retired but robot 10 still holds it"):
         book.check()  # ...but by the full check
 
 

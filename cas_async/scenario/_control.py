@@ -1,0 +1,287 @@
+"""The control plane of a run across processes: typed messages, signed, never replayed.
+
+Every process of a run across processes (the world and its workers) speaks these
+msgspec Structs, one tagged union, over Zenoh. Each travels in an envelope that
+names the run, the sender and the sender's count of messages so far, and with a
+swarm key carries an HMAC-SHA256 tag over the key expression and the envelope:
+
+* a message of another run, or one whose tag does not check, is refused;
+* a message whose count is not above the last one taken from its sender is a
+  replay, refused and counted (a sender's count only grows);
+* a message that does not decode, or that its handler cannot apply, is refused
+  and counted, and the rest of the batch goes on.
+
+The refusals are counted by reason in :attr:`Channel.refused` (they end up in
+``results.json``). Without a key a stranger on the Zenoh network can speak for
+anyone (see the README's security section): :class:`Channel` checks what it can
+(run, counts, types), and the world refuses to run across hosts without a key.
+
+The protocol (world ``W``, workers ``0..n-1``):
+
+* lobby: a worker sends :class:`Hello` until ``W`` answers :class:`Welcome` (the
+  run's namespace, the scenario, the worker's share of the robots) or :class:`Full`;
+* ``W`` sends :class:`Go` when every worker is :class:`Ready`;
+* virtual time, window ``k``: each worker runs every event before the window's
+  end, then publishes its :class:`Window` (what its robots did, what they sent to
+  other processes' robots, its next event); ``W`` answers every window ``k`` with
+  one :class:`Grant` (the next window's end) or :class:`Stop`;
+* scaled time: workers publish :class:`Window` records as they go, unnumbered;
+* a worker that fails says :class:`Failed`; a stopping one says :class:`Bye`
+  with its counts.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hashlib
+import hmac
+from collections.abc import Callable
+from typing import Any, Final, Union
+
+import msgspec
+
+from .._swarm_key import SwarmKey
+from ..transport._thread_inbox import ThreadInbox
+from ._observer import Observation
+
+__all__ = [
+    "WORLD",
+    "Bye",
+    "Channel",
+    "Control",
+    "Counts",
+    "Failed",
+    "Full",
+    "Go",
+    "Grant",
+    "Hello",
+    "Ready",
+    "Remote",
+    "Stop",
+    "Welcome",
+    "Window",
+]
+
+WORLD: Final = -1
+"""The world's sender id (workers are ``0..n-1``)."""
+_TAG: Final = 16
+
+
+class Remote(msgspec.Struct, frozen=True, array_like=True):
+    """An effect on another process's robot, due at loop instant ``at`` (see ``_network``).
+
+    ``kind`` is a :mod:`cas_async._deliveries` kind; ``sender`` and ``n`` order the
+    effects of one instant; the fields that follow are the kind's.
+    """
+
+    at: float
+    kind: int
+    sender: int
+    n: int
+    receiver: int
+    data: bytes = b""
+    item: int = 0
+    sent: float = 0.0
+    reach: float = 0.0
+    answer: int = 0
+    refused: str | None = None
+
+
+class Counts(msgspec.Struct, frozen=True, array_like=True):
+    """A worker's counts so far: messages by kind and class, drops, refusals."""
+
+    internal: dict[str, int] = msgspec.field(default_factory=dict)
+    external: dict[str, int] = msgspec.field(default_factory=dict)
+    dropped: dict[str, int] = msgspec.field(default_factory=dict)
+    refused: dict[str, int] = msgspec.field(default_factory=dict)
+
+
+class Hello(msgspec.Struct, frozen=True, tag="hello"):
+    """A worker asks to join: ``nonce`` (where the answer goes), ``sent`` (wall time), its pid."""
+
+    nonce: str
+    sent: float
+    pid: int
+
+
+class Welcome(msgspec.Struct, frozen=True, tag="welcome"):
+    """The world takes a worker: its index, the run's namespace and scenario, every share.
+
+    ``shares[k]`` are the robots worker ``k`` runs (``shares[index]`` this one's).
+    """
+
+    index: int
+    namespace: str
+    path: str
+    data: dict[str, Any]
+    shares: list[list[int]]
+
+
+class Full(msgspec.Struct, frozen=True, tag="full"):
+    """The world has all its workers."""
+
+    workers: int
+
+
+class Ready(msgspec.Struct, frozen=True, tag="ready"):
+    """A worker built its robots, opened them and waits for the start."""
+
+
+class Go(msgspec.Struct, frozen=True, tag="go"):
+    """Start: on scaled time, simulated time 0 is wall-clock instant ``epoch``."""
+
+    epoch: float
+
+
+class Window(msgspec.Struct, frozen=True, tag="window"):
+    """What a worker's robots did in window ``k`` (``-1`` on scaled time), and what comes next."""
+
+    k: int
+    next_event: float
+    observation: Observation
+    remote: list[Remote]
+    counts: Counts
+    stopped: bool = False
+
+
+class Grant(msgspec.Struct, frozen=True, tag="grant"):
+    """Window ``k`` ends at loop instant ``end`` (every worker may run up to it)."""
+
+    k: int
+    end: float
+
+
+class Stop(msgspec.Struct, frozen=True, tag="stop"):
+    """The run is over: stop the robots, say :class:`Bye`."""
+
+
+class Failed(msgspec.Struct, frozen=True, tag="failed"):
+    """A worker failed (its robots stopped): why."""
+
+    error: str
+
+
+class Bye(msgspec.Struct, frozen=True, tag="bye"):
+    """A worker stopped: its last counts."""
+
+    counts: Counts
+
+
+Control = Union[Hello, Welcome, Full, Ready, Go, Window, Grant, Stop, Failed, Bye]  # noqa: UP007
+"""Every message of the control plane."""
+
+
+class _Envelope(msgspec.Struct, frozen=True, array_like=True):
+    run: str
+    sender: int
+    count: int
+    body: bytes
+
+
+_ENVELOPE: Final = msgspec.msgpack.Decoder(_Envelope)
+_CONTROL: Final = msgspec.msgpack.Decoder(Control)
+_ENCODE: Final = msgspec.msgpack.Encoder().encode
+
+
+class Channel:
+    """Sends and receives control messages of one run through a Zenoh session.
+
+    Args:
+        session: an open ``zenoh.Session`` (the caller closes it).
+        namespace: the run's key prefix (random per run: the run's id).
+        sender: this process's id (:data:`WORLD`, or the worker's index).
+        key: the swarm key that signs every message, or ``None``.
+        handle: called on the event loop with ``(suffix, sender, message)`` for each
+            message that passed every check; what it raises is counted as
+            ``control.unusable`` and the batch goes on.
+    """
+
+    def __init__(
+        self,
+        session: Any,
+        namespace: str,
+        sender: int,
+        key: SwarmKey | None,
+        handle: Callable[[str, int, Control], None],
+    ) -> None:
+        import zenoh
+
+        self._session = session
+        self._namespace = namespace
+        self._prefix = f"{namespace}/ctl/"
+        self._sender = sender
+        self._secret = None if key is None else key.secret
+        self._handle = handle
+        self._count = 0
+        self._seen: dict[int, int] = {}  # sender -> its highest count taken
+        self._inbox: ThreadInbox[tuple[str, bytes]] = ThreadInbox(
+            asyncio.get_running_loop(), self._drain
+        )
+        self._subscribers: list[Any] = []
+        self._block = zenoh.CongestionControl.BLOCK
+        self.refused: dict[str, int] = {}
+        """Messages refused, by reason (``control.<reason>``)."""
+
+    def listen(self, suffix: str) -> None:
+        """Receives what is published under ``{namespace}/ctl/{suffix}`` (wildcards allowed)."""
+        inbox = self._inbox
+        self._subscribers.append(
+            self._session.declare_subscriber(
+                self._prefix + suffix,
+                lambda sample: inbox.put((str(sample.key_expr), sample.payload.to_bytes())),
+            )
+        )
+
+    def send(self, suffix: str, message: Control) -> None:
+        """Publishes ``message`` under ``{namespace}/ctl/{suffix}``, reliably."""
+        key = self._prefix + suffix
+        self._count += 1
+        payload = _ENCODE(_Envelope(self._namespace, self._sender, self._count, _ENCODE(message)))
+        if self._secret is not None:
+            payload += _tag(self._secret, key, payload)
+        self._session.put(key, payload, congestion_control=self._block)
+
+    def close(self) -> None:
+        """Stops receiving (the session stays open); idempotent."""
+        subscribers, self._subscribers = self._subscribers, []
+        for subscriber in subscribers:
+            with contextlib.suppress(Exception):
+                subscriber.undeclare()
+
+    def _refuse(self, reason: str) -> None:
+        key = f"control.{reason}"
+        self.refused[key] = self.refused.get(key, 0) + 1
+
+    def _drain(self, entries: list[tuple[str, bytes]]) -> None:
+        for key, payload in entries:
+            if self._secret is not None:
+                body, tag = payload[:-_TAG], payload[-_TAG:]
+                if len(payload) < _TAG or not hmac.compare_digest(
+                    tag, _tag(self._secret, key, body)
+                ):
+                    self._refuse("unsigned")
+                    continue
+                payload = body
+            try:
+                envelope = _ENVELOPE.decode(payload)
+                message = _CONTROL.decode(envelope.body)
+            except (msgspec.DecodeError, RecursionError):
+                self._refuse("malformed")
+                continue
+            if envelope.run != self._namespace:
+                self._refuse("other_run")
+                continue
+            if envelope.count <= self._seen.get(envelope.sender, 0):
+                self._refuse("replayed")
+                continue
+            self._seen[envelope.sender] = envelope.count
+            try:
+                self._handle(key[len(self._prefix) :], envelope.sender, message)
+            except Exception:
+                self._refuse("unusable")
+
+
+def _tag(secret: bytes, key: str, payload: bytes) -> bytes:
+    """The signature of ``payload`` published under ``key``."""
+    return hmac.new(secret, key.encode() + b"\0" + payload, hashlib.sha256).digest()[:_TAG]

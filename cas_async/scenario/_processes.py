@@ -1,0 +1,35 @@
+"""What runs across processes share: the error of a lost worker, and bounded waits for one."""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable
+from typing import TypeVar
+
+from .._errors import ConfigurationError
+from .._wall import wall_bounded
+
+__all__ = ["WorkerLost", "within"]
+
+T = TypeVar("T")
+
+_TIMED_OUT = object()
+
+
+class WorkerLost(ConfigurationError):
+    """A worker process went away, failed, or did not answer in time."""
+
+
+async def within(aw: Awaitable[T], seconds: float, what: str) -> T:
+    """Awaits ``aw`` for at most ``seconds`` of wall time (a virtual loop's time may stand still).
+
+    Raises:
+        WorkerLost: the time ran out, naming ``what`` was awaited.
+    """
+
+    async def marked() -> object:
+        return await aw
+
+    result = await wall_bounded(marked(), seconds)
+    if result is None:
+        raise WorkerLost(f"gave up after {seconds:g} s waiting for {what}")
+    return result  # type: ignore[return-value]

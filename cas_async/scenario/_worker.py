@@ -1,0 +1,315 @@
+"""A worker process of a run across processes: its share of the robots, window by window.
+
+``python -m cas_async worker --connect ENDPOINT`` (or a child of ``run --processes``)
+joins the world through its lobby, builds the scenario the world sends (every
+robot, with the run's seed: the application draws the same numbers in every
+process) and starts its share. Its robots talk through a
+:class:`~._network.ProcessNetwork`; on virtual time its loop moves in windows
+(:mod:`._windows`): when every event before a window's end has run, the worker
+publishes its :class:`~._control.Window` and waits for the other workers' windows
+and the world's :class:`~._control.Grant` of the next one. On scaled time it
+publishes what its robots did as it goes, from simulated time 0 on, which is the
+wall-clock instant the world's :class:`~._control.Go` names.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import secrets
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Final
+
+from .._clock import Clock, ScaledClock
+from .._runner import run
+from .._swarm import Swarm
+from .._swarm_key import SwarmKey
+from .._virtual_loop import VirtualTimeLoop
+from ..transport._zenoh import import_zenoh, loopback_config
+from ._control import (
+    WORLD,
+    Bye,
+    Channel,
+    Control,
+    Counts,
+    Failed,
+    Full,
+    Go,
+    Grant,
+    Hello,
+    Ready,
+    Stop,
+    Welcome,
+    Window,
+)
+from ._loader import Scenario, scenario_from_data
+from ._network import ProcessNetwork
+from ._observer import Recorder
+from ._processes import WorkerLost, within
+from ._run_transport import faulty
+from ._windows import Windows
+
+__all__ = ["LOBBY", "run_worker"]
+
+LOBBY: Final = "cas_async/lobby"
+HEARTBEAT: Final = 0.05
+"""Wall seconds between two reports of a worker's simulated time, on scaled time."""
+COUNTS_EVERY: Final = 64
+"""Windows between two counts a worker reports (the last ones come with its ``Bye``)."""
+_HELLO_EVERY: Final = 0.25
+
+
+async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
+    """Joins the world at ``connect`` through its lobby; returns its :class:`Welcome`.
+
+    Raises:
+        ConfigurationError: the world cannot be reached, or has its workers.
+        WorkerLost: no answer within ``limit`` wall seconds (no world there, or a wrong key).
+    """
+    zenoh = import_zenoh()
+    config = loopback_config(mode="client", listen=[], connect=[connect])
+    try:
+        session = await asyncio.to_thread(zenoh.open, config)
+    except Exception as exc:
+        from .._errors import ConfigurationError
+
+        raise ConfigurationError(f"worker: cannot connect to {connect}: {exc}") from exc
+    nonce = secrets.token_hex(8)
+    answer: asyncio.Future[Control] = asyncio.get_running_loop().create_future()
+
+    def handle(suffix: str, sender: int, message: Control) -> None:
+        if suffix == f"welcome/{nonce}" and sender == WORLD and not answer.done():
+            answer.set_result(message)
+
+    lobby = Channel(session, LOBBY, int(nonce, 16) & 0x7FFFFFFF, key, handle)
+    try:
+        lobby.listen(f"welcome/{nonce}")
+        deadline = time.monotonic() + limit
+        while not answer.done():
+            if time.monotonic() > deadline:
+                raise WorkerLost(f"worker: no answer from a world at {connect} (a wrong key?)")
+            lobby.send("hello", Hello(nonce, time.time(), os.getpid()))
+            with contextlib.suppress(WorkerLost):
+                await within(asyncio.shield(answer), _HELLO_EVERY, "the world's welcome")
+        message = answer.result()
+    finally:
+        lobby.close()
+        session.close()
+    match message:
+        case Welcome():
+            return message
+        case Full(workers=workers):
+            from .._errors import ConfigurationError
+
+            raise ConfigurationError(f"worker: the world at {connect} has its {workers} workers")
+    raise WorkerLost(f"worker: the world at {connect} answered {type(message).__name__}")
+
+
+def run_worker(connect: str, key: SwarmKey | None, *, listen: tuple[str, ...] = ()) -> int:
+    """A worker process from start to end: joins the world at ``connect``, runs its share.
+
+    Returns the exit code: 0 when the world stopped the run, 1 when this worker failed.
+
+    Raises:
+        ConfigurationError: the world cannot be reached, or refused this worker.
+        WorkerLost: the world did not answer.
+    """
+    welcome = asyncio.run(join(connect, key, 60.0))
+    scenario = scenario_from_data(Path(welcome.path), welcome.data)
+    worker = _Worker(scenario, welcome, connect, key, listen)
+    if scenario.run.virtual:
+        with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
+            return runner.run(worker.run())
+    return run(worker.run())
+
+
+class _Worker:
+    def __init__(
+        self,
+        scenario: Scenario,
+        welcome: Welcome,
+        connect: str,
+        key: SwarmKey | None,
+        listen: tuple[str, ...],
+    ) -> None:
+        self._scenario = scenario
+        self._welcome = welcome
+        self._index = welcome.index
+        self._connect = connect
+        self._key = key
+        self._listen = listen
+        self._k = 0
+        self._peers: dict[int, dict[int, Window]] = {}  # window -> worker -> its Window
+        self._grants: dict[int, Grant] = {}
+        self._stop: asyncio.Event | None = None
+        self._news: asyncio.Event | None = None  # something came in: look again
+        self._go: asyncio.Future[float] | None = None
+        self._channel: Channel | None = None
+        self._network: ProcessNetwork | None = None
+        self._recorder: Recorder | None = None
+        self._swarm = Swarm(())
+        self._flushing = False
+        self._clock: Clock | None = None
+        self._final: Counts | None = None  # the counts as the run ended (virtual time)
+
+    async def run(self) -> int:
+        loop = asyncio.get_running_loop()
+        self._stop, self._news = asyncio.Event(), asyncio.Event()
+        self._go = loop.create_future()
+        scenario, welcome = self._scenario, self._welcome
+        clock = self._clock = scenario.clock()
+        environment = scenario.environment(clock)
+        owners = {robot: worker for worker, share in enumerate(welcome.shares) for robot in share}
+        own = set(welcome.shares[self._index])
+        virtual = scenario.run.virtual
+        network = self._network = ProcessNetwork(
+            owners,
+            self._index,
+            scenario.network.latency,
+            clock,
+            environment,
+            flush=None if virtual else self._schedule_flush,
+        )
+        transport = faulty(scenario, network, clock)
+        mission = scenario.app.build(scenario.setup(environment, clock, transport))
+        environment.set_local(own, network)
+        self._recorder = Recorder(environment, own)
+        self._swarm = swarm = Swarm(r for r in mission.robots if r.robot_id in own)
+        zenoh = import_zenoh()
+        config = loopback_config(
+            mode="peer" if self._listen else "client",
+            listen=list(self._listen),
+            connect=[self._connect],
+        )
+        session = await asyncio.to_thread(zenoh.open, config)
+        channel = self._channel = Channel(
+            session, welcome.namespace, self._index, self._key, self._on_message
+        )
+        failed: str | None = None
+        token = None
+        try:
+            channel.listen("all")
+            channel.listen("win/*")
+            token = session.liveliness().declare_token(f"{welcome.namespace}/worker/{self._index}")
+            await swarm.open()
+            channel.send("world", Ready())
+            epoch = await within(self._go, scenario.run.window_limit, "the world's go")
+            if virtual:
+                assert isinstance(loop, VirtualTimeLoop)
+                loop.run_windows(Windows(loop, loop.time() + scenario.network.latency, self._close))
+            elif isinstance(clock, ScaledClock):
+                clock.start_at_wall(epoch)
+                await asyncio.sleep(max(0.0, epoch - time.time()))  # nothing before time 0
+            swarm.start()
+            beating = None if virtual else asyncio.ensure_future(self._beat())
+            running = asyncio.ensure_future(swarm.run())
+            stopping = asyncio.ensure_future(self._stop.wait())
+            await asyncio.wait((running, stopping), return_when=asyncio.FIRST_COMPLETED)
+            if running.done() and not running.cancelled() and running.exception() is not None:
+                failed = f"{type(running.exception()).__name__}: {running.exception()}"
+            stopping.cancel()
+            running.cancel()
+            if beating is not None:
+                beating.cancel()
+            with contextlib.suppress(BaseException):
+                await running
+        except Exception as exc:
+            failed = f"{type(exc).__name__}: {exc}"
+            traceback.print_exc()
+        finally:
+            if virtual and isinstance(loop, VirtualTimeLoop):
+                loop.run_windows(None)
+            with contextlib.suppress(Exception):
+                await swarm.halt()
+                swarm.close()
+            with contextlib.suppress(Exception):
+                if failed is not None:
+                    channel.send("world", Failed(failed))
+                channel.send("world", Bye(self._final or self._counts()))
+            if token is not None:
+                with contextlib.suppress(Exception):
+                    token.undeclare()
+            channel.close()
+            session.close()
+        if failed is not None:
+            print(f"worker {self._index}: {failed}", file=sys.stderr)
+        return 1 if failed is not None else 0
+
+    def _counts(self) -> Counts:
+        counts = self._swarm.message_counts()
+        refused = {} if self._channel is None else dict(self._channel.refused)
+        return Counts(counts["internal"], counts["external"], self._swarm.drop_counts(), refused)
+
+    # -- virtual time: windows -----------------------------------------------------------
+
+    async def _close(self, end: float, next_event: float) -> float | None:
+        """Publishes window ``k`` and waits for the others' and the world's grant."""
+        k = self._k
+        recorder, network, channel = self._recorder, self._network, self._channel
+        stop, news = self._stop, self._news
+        assert recorder is not None and network is not None and channel is not None  # noqa: PT018
+        assert stop is not None and news is not None  # noqa: PT018
+        counts = self._counts() if k % COUNTS_EVERY == COUNTS_EVERY - 1 else Counts()
+        channel.send(
+            f"win/{self._index}",
+            Window(k, next_event, recorder.take(), network.take_outgoing(), counts),
+        )
+        workers = len(self._welcome.shares)
+        while not stop.is_set():
+            if k in self._grants and len(self._peers.get(k, {})) >= workers - 1:
+                break
+            news.clear()
+            await news.wait()
+        if stop.is_set():
+            self._final = self._counts()  # as the run ended: before the robots stop
+            return None
+        for worker, peer in sorted(self._peers.pop(k, {}).items()):
+            network.receive(worker, peer.observation, peer.remote)
+        self._k = k + 1
+        return self._grants.pop(k).end
+
+    # -- scaled time: as it goes ---------------------------------------------------------
+
+    def _schedule_flush(self) -> None:
+        if not self._flushing:
+            self._flushing = True
+            asyncio.get_running_loop().call_soon(self._flush)
+
+    def _flush(self) -> None:
+        self._flushing = False
+        if self._channel is None or self._network is None or self._recorder is None:
+            return
+        now = self._clock.now() if self._clock is not None else 0.0
+        window = Window(-1, now, self._recorder.take(), self._network.take_outgoing(), Counts())
+        self._channel.send(f"win/{self._index}", window)
+
+    async def _beat(self) -> None:
+        """Scaled time: where this worker's time is, every so often, also when nothing happens."""
+        while True:
+            await asyncio.sleep(HEARTBEAT)
+            self._flush()
+
+    # -- what comes in -------------------------------------------------------------------
+
+    def _on_message(self, suffix: str, sender: int, message: Control) -> None:
+        match message:
+            case Window() if sender != self._index and 0 <= sender < len(self._welcome.shares):
+                if message.k < 0:  # scaled time: at once
+                    if self._network is not None:
+                        self._network.receive(sender, message.observation, message.remote)
+                elif message.k >= self._k:
+                    self._peers.setdefault(message.k, {})[sender] = message
+            case Grant() if sender == WORLD and message.k >= self._k:
+                self._grants[message.k] = message
+            case Go(epoch=epoch) if sender == WORLD:
+                if self._go is not None and not self._go.done():
+                    self._go.set_result(epoch)
+            case Stop() if sender == WORLD:
+                if self._stop is not None:
+                    self._stop.set()
+        if self._news is not None:
+            self._news.set()
