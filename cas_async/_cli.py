@@ -190,6 +190,8 @@ def _parser() -> argparse.ArgumentParser:
     worker.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                         help="also listen here, so other workers link to this one directly "
                         "(peer mode); default: everything through the world's router")  # fmt: skip
+    worker.add_argument("--quiet", action="store_true",
+                        help="do not say which robots this worker runs (on stderr)")  # fmt: skip
     sweeper = commands.add_parser(
         "sweep",
         help="run a scenario over a grid of values and seeds",
@@ -363,7 +365,7 @@ def _world(args: argparse.Namespace, scenario: Scenario, key: SwarmKey | None) -
 def _command_worker(args: argparse.Namespace, stderr: TextIO) -> int:
     try:
         key = SwarmKey.from_file(args.key_file) if args.key_file else SwarmKey.from_env()
-        return run_worker(args.connect, key, listen=args.listen)
+        return run_worker(args.connect, key, listen=tuple(args.listen), quiet=args.quiet)
     except ConfigurationError as exc:
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE

@@ -11,8 +11,11 @@ very results of a run in one.
 
 On a :class:`~cas_async._virtual_loop.VirtualTimeLoop` the deliveries of an instant
 run when the loop reaches it, before the loop's own timers of that instant (the
-loop asks :meth:`Deliveries.next_at` before each jump). On any other loop they are
-timers (``loop.call_at``), and their order within an instant is the loop's.
+loop asks :meth:`Deliveries.next_at` before each jump). On any other loop (scaled
+real time) they are run by a timer, in the same order; one that comes due too late
+(from another process, over a real network) runs as soon as it can, and is
+counted (:attr:`Deliveries.late`, :attr:`Deliveries.most_late`): on scaled time,
+how far the simulation fell behind the wall clock.
 """
 
 from __future__ import annotations
@@ -57,14 +60,19 @@ class Deliveries:
     shares it, so their deliveries of one instant are ordered together.
     """
 
-    __slots__ = ("_count", "_heap", "_loop", "_virtual", "_waker")
+    __slots__ = ("_count", "_heap", "_loop", "_virtual", "_waker", "_waker_at", "late", "most_late")
 
     def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
         self._loop = loop
         self._heap: list[tuple[float, Key, int, Callable[[], None]]] = []
         self._count = 0  # ties of identical keys keep the order they were given in
         self._virtual = hasattr(loop, "host")
-        self._waker: asyncio.TimerHandle | None = None
+        self._waker: asyncio.Handle | None = None
+        self._waker_at = math.inf
+        self.late = 0
+        """Deliveries given after their instant had passed (scaled real time only)."""
+        self.most_late = 0.0
+        """Loop seconds by which the latest of them came after its instant."""
         if self._virtual:
             loop.host(self)  # type: ignore[attr-defined]
 
@@ -83,11 +91,18 @@ class Deliveries:
     def at(self, when: float, key: Key, action: Callable[[], None]) -> None:
         """Runs ``action`` at loop time ``when``, after that instant's deliveries of smaller keys.
 
+        On scaled real time, an action due at or before now runs as soon as it can.
+
         Raises:
-            ValueError: ``when`` is not after the loop's time now (an effect takes time).
+            ValueError: on virtual time, ``when`` is not after the loop's time now
+                (an effect takes time, and the loop's time never falls behind).
         """
-        if not when > self._loop.time():
-            raise ValueError(f"a delivery is due after now ({self._loop.time()}), not at {when}")
+        now = self._loop.time()
+        if not when > now:
+            if self._virtual:
+                raise ValueError(f"a delivery is due after now ({now}), not at {when}")
+            self.late += 1
+            self.most_late = max(self.most_late, now - when)
         self._count += 1
         heapq.heappush(self._heap, (when, key, self._count, action))
         if not self._virtual:
@@ -116,16 +131,16 @@ class Deliveries:
         return ran
 
     def _wake_at(self, when: float) -> None:
-        waker = self._waker
-        if waker is not None and waker.when() <= when:
-            return
-        if waker is not None:
-            waker.cancel()
-        self._waker = self._loop.call_at(when, self._woken)
+        if self._waker is not None:
+            if self._waker_at <= when:
+                return
+            self._waker.cancel()
+        # (a loop may answer a call_at in the past with a plain Handle, without when())
+        self._waker, self._waker_at = self._loop.call_at(when, self._woken), when
 
     def _woken(self) -> None:
-        waker, self._waker = self._waker, None
+        armed, self._waker, self._waker_at = self._waker_at, None, math.inf
         # A timer may go off a hair before its time: the instant it was armed for has come.
-        self.run_due(max(self._loop.time(), waker.when() if waker is not None else 0.0))
+        self.run_due(max(self._loop.time(), armed))
         if self._heap:
             self._wake_at(self._heap[0][0])

@@ -185,6 +185,17 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         """The virtual time, in seconds."""
         return self._virtual_now
 
+    def next_deadline(self) -> float:
+        """The instant of the loop's next event: a timer or a delivery (``inf``: none).
+
+        Cancelled timers still at the head of the heap count (asyncio drops them
+        before it selects; call it from :meth:`when_idle`, where it has).
+        """
+        scheduled: list[asyncio.TimerHandle] = self._scheduled  # type: ignore[attr-defined]
+        timer = scheduled[0].when() if scheduled else math.inf
+        deliveries = self._deliveries
+        return min(timer, math.inf if deliveries is None else deliveries.next_at())
+
     def timer_deadlines(self) -> list[float]:
         """The virtual instants of the timers still to go off, earliest first."""
         # The base loop's heap of timers (typeshed does not declare it); cancelled

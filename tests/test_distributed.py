@@ -314,6 +314,8 @@ class LostWorker:
     results: dict[str, Any] | None
     other_code: int | None
     killed_code: int | None
+    shares: dict[int, list[int]]
+    """The robots each worker said it runs (a worker started by hand says so)."""
 
 
 @pytest.fixture(scope="module")
@@ -342,21 +344,33 @@ def lost_worker(tmp_path_factory: pytest.TempPathFactory) -> LostWorker:
         other_code = workers[0].wait(WORKER_EXIT_LIMIT)
         killed_code = workers[1].wait(WORKER_EXIT_LIMIT)
         output = world.output()
+        shares = dict(_share(worker.output()) for worker in workers)
     results = read_results(out) if (out / "results.json").exists() else None
-    return LostWorker(world_code, output, results, other_code, killed_code)
+    return LostWorker(world_code, output, results, other_code, killed_code, shares)
 
 
+_SHARE: Final = re.compile(r"worker (\d) of 2: its (\d+) robots: ([\d, ]+)")
 _LOST: Final = re.compile(r"worker (\d) is gone\b.*?\bits (\d+) robots are lost: ([\d, ]+)")
 
 
-def _lost_robots(text: str) -> tuple[int, list[int]]:
-    """The worker and the robots a ``worker N is gone`` message names; checks they agree."""
+def _share(text: str) -> tuple[int, list[int]]:
+    """The worker and the robots a worker says it runs as it joins."""
+    found = _SHARE.search(text)
+    assert found is not None, text
+    robots = [int(robot) for robot in found.group(3).split(",")]
+    assert int(found.group(2)) == len(robots)
+    return int(found.group(1)), robots
+
+
+def _lost_robots(text: str, shares: dict[int, list[int]]) -> tuple[int, list[int]]:
+    """The worker and the robots a ``worker N is gone`` message names: its share."""
     found = _LOST.search(text)
     assert found is not None, text
     worker, count = int(found.group(1)), int(found.group(2))
     robots = [int(robot) for robot in found.group(3).split(",")]
-    assert robots == ROBOTS[worker::2]
+    assert robots == shares[worker]
     assert count == len(robots)
+    assert sorted(shares[0] + shares[1]) == ROBOTS
     return worker, robots
 
 
@@ -366,14 +380,14 @@ def test_a_killed_worker_ends_the_run_the_world_names_it_and_its_robots(
     assert lost_worker.killed_code == -signal.SIGKILL
     assert lost_worker.world_code is not None, "the world still ran 45 s after the loss"
     assert lost_worker.world_code != 0, lost_worker.world_output
-    _lost_robots(lost_worker.world_output)
+    _lost_robots(lost_worker.world_output, lost_worker.shares)
 
 
 def test_a_killed_worker_leaves_results_of_a_failed_run(lost_worker: LostWorker) -> None:
     assert lost_worker.results is not None, lost_worker.world_output
     assert lost_worker.results["status"] == "failed"
     assert lost_worker.results["delivered"] < 20
-    _lost_robots(lost_worker.results["error"])
+    _lost_robots(lost_worker.results["error"], lost_worker.shares)
 
 
 def test_a_killed_worker_leaves_no_process_running(lost_worker: LostWorker) -> None:

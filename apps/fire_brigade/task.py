@@ -187,8 +187,10 @@ class Task(BrigadeLayer):
             return
         plan = meeting.plan
         if plan.giver:
-            done = await self._act(Give(plan.bucket, partner))
+            # Over once the bucket leaves: it travels to the partner's hands (the network's
+            # latency), and the partner's silence meanwhile does not end the meeting.
             del self.meetings[partner]
+            done = await self._act(Give(plan.bucket, partner))
             if done.has_bucket:  # the partner withdrew its hands: it gave up on us
                 self._abandoned(plan, done)
                 return

@@ -70,19 +70,11 @@ class SteppingLoop(VirtualTimeLoop):
         self, timeout: float | None, selector: selectors.BaseSelector
     ) -> list[tuple[selectors.SelectorKey, int]]:
         """Pauses when the next timer is after the horizon; else jumps to it as always."""
-        if self._horizon != math.inf:
-            deadline = self._next_deadline()
-            if deadline is None or deadline > self._horizon:
-                self.stop()  # this pass ends with nothing to run: run_forever returns
-                return []
+        # The next timer or delivery is what the idle jump would go to.
+        if self._horizon != math.inf and self.next_deadline() > self._horizon:
+            self.stop()  # this pass ends with nothing to run: run_forever returns
+            return []
         return super().when_idle(timeout, selector)
-
-    def _next_deadline(self) -> float | None:
-        """The instant of the earliest timer still to go off (the loop drops cancelled heads)."""
-        # asyncio pops cancelled timers off the top of its heap before it selects, so
-        # the head is the timer the idle jump would go to (typeshed does not declare it).
-        scheduled: list[asyncio.TimerHandle] = self._scheduled  # type: ignore[attr-defined]
-        return scheduled[0].when() if scheduled else None
 
 
 def _stop_loop(future: asyncio.Future[Any]) -> None:

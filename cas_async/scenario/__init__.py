@@ -29,7 +29,9 @@ from ._config import ScenarioError, from_toml, setting
 from ._drop_policy import FailOnDrops
 from ._listener import RunListener
 from ._loader import (
+    DEFAULT_LATENCY,
     FaultsConfig,
+    NetworkConfig,
     RunConfig,
     Scenario,
     WorldConfig,
@@ -53,6 +55,7 @@ from ._trace import Trace, TraceCsv
 
 __all__ = [
     "BackgroundRun",
+    "DEFAULT_LATENCY",
     "Disc",
     "FailOnDrops",
     "FaultsConfig",
@@ -61,6 +64,7 @@ __all__ = [
     "Measure",
     "MetricStats",
     "Mission",
+    "NetworkConfig",
     "Objective",
     "Polyline",
     "Progress",

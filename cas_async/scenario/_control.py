@@ -23,8 +23,15 @@ The protocol (world ``W``, workers ``0..n-1``):
 * ``W`` sends :class:`Go` when every worker is :class:`Ready`;
 * virtual time, window ``k``: each worker runs every event before the window's
   end, then publishes its :class:`Window` (what its robots did, what they sent to
-  other processes' robots, its next event); ``W`` answers every window ``k`` with
-  one :class:`Grant` (the next window's end) or :class:`Stop`;
+  other processes' robots, its next event) to ``W`` and to the other workers.
+  With every window ``k`` in hand, each of them computes where window ``k + 1``
+  ends (:func:`next_instant` plus the latency), the same for all. A worker runs
+  window ``k + 1`` once it has every window ``k`` and ``W``'s :class:`Grant` of
+  ``k + 1``, which ``W`` sends once it has observed window ``k - 1`` (the mission
+  not complete): ``W`` is never on the workers' way, and a run whose mission was
+  complete in window ``c`` runs window ``c + 1`` and no further, in any number of
+  processes. ``W`` then says :class:`Stop`; a worker whose next window would
+  start at or after ``run.max_time`` waits for it;
 * scaled time: workers publish :class:`Window` records as they go, unnumbered;
 * a worker that fails says :class:`Failed`; a stopping one says :class:`Bye`
   with its counts.
@@ -36,7 +43,8 @@ import asyncio
 import contextlib
 import hashlib
 import hmac
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Iterable
 from typing import Any, Final, Union
 
 import msgspec
@@ -46,7 +54,10 @@ from ..transport._thread_inbox import ThreadInbox
 from ._observer import Observation
 
 __all__ = [
+    "BEAT_EVERY",
+    "SUSPECT_LIMIT",
     "WORLD",
+    "Beat",
     "Bye",
     "Channel",
     "Control",
@@ -61,10 +72,17 @@ __all__ = [
     "Stop",
     "Welcome",
     "Window",
+    "next_instant",
 ]
 
 WORLD: Final = -1
 """The world's sender id (workers are ``0..n-1``)."""
+BEAT_EVERY: Final = 0.5
+"""Wall seconds between two :class:`Beat` of the world."""
+SUSPECT_LIMIT: Final = 2.0
+"""Wall seconds a process whose liveliness token went has to prove it lives (a signed
+message): a token is a hint that a process is gone, never proof (anyone on the
+network may say what they like about tokens)."""
 _TAG: Final = 16
 
 
@@ -146,10 +164,13 @@ class Window(msgspec.Struct, frozen=True, tag="window"):
 
 
 class Grant(msgspec.Struct, frozen=True, tag="grant"):
-    """Window ``k`` ends at loop instant ``end`` (every worker may run up to it)."""
+    """The workers may run window ``k`` (the world observed window ``k - 2``)."""
 
     k: int
-    end: float
+
+
+class Beat(msgspec.Struct, frozen=True, tag="beat"):
+    """The world lives (every :data:`BEAT_EVERY` wall seconds, whatever else it says)."""
 
 
 class Stop(msgspec.Struct, frozen=True, tag="stop"):
@@ -163,12 +184,17 @@ class Failed(msgspec.Struct, frozen=True, tag="failed"):
 
 
 class Bye(msgspec.Struct, frozen=True, tag="bye"):
-    """A worker stopped: its last counts."""
+    """A worker stopped: its last counts, and the wall seconds it spent waiting.
+
+    ``waited``: for the others' windows and the world's grants (virtual time),
+    the part of a run across processes that is synchronisation, not simulation.
+    """
 
     counts: Counts
+    waited: float = 0.0
 
 
-Control = Union[Hello, Welcome, Full, Ready, Go, Window, Grant, Stop, Failed, Bye]  # noqa: UP007
+Control = Union[Hello, Welcome, Full, Ready, Go, Window, Grant, Beat, Stop, Failed, Bye]  # noqa: UP007
 """Every message of the control plane."""
 
 
@@ -285,3 +311,23 @@ class Channel:
 def _tag(secret: bytes, key: str, payload: bytes) -> bytes:
     """The signature of ``payload`` published under ``key``."""
     return hmac.new(secret, key.encode() + b"\0" + payload, hashlib.sha256).digest()[:_TAG]
+
+
+def next_instant(windows: Iterable[Window], latency: float) -> float:
+    """The first instant anything happens after these windows (``inf``: nothing ever will).
+
+    A worker's own next event, an effect one sent to another, or a motion of its
+    robots becoming visible to the others. The next window ends ``latency`` later.
+    """
+    return min(
+        (
+            t
+            for window in windows
+            for t in (
+                window.next_event,
+                *(remote.at for remote in window.remote),
+                *(m.t + latency for m in window.observation.motions),
+            )
+        ),
+        default=math.inf,
+    )

@@ -144,7 +144,7 @@ class RunConfig:
         return RestartPolicy(self.restarts, self.restart_window)
 
 
-DEFAULT_LATENCY: Final = 0.0
+DEFAULT_LATENCY: Final = 0.005
 """Simulated seconds of the network model when a scenario says nothing (see NetworkConfig)."""
 
 

@@ -167,13 +167,18 @@ class Observer:
             await self.sample_until(end, inclusive=False)
         self.until = end
 
-    def apply(self, observations: Iterable[Observation]) -> None:
-        """Applies records at once, in order, without sampling (on scaled time, a clock does)."""
+    def apply(self, observations: Iterable[Observation], until: float | None = None) -> None:
+        """Applies records at once, in order, without sampling (on scaled time, a clock does).
+
+        ``until``: the instant up to which the mirror is then complete, if known.
+        """
         done = self._done
         for t, kind, robot, record in _in_order(observations):
             if done():
-                return
+                break
             self._apply(t, kind, robot, record)
+        if until is not None and not done():
+            self.until = max(self.until, until)
 
     def _apply(
         self, t: float, kind: int, robot: RobotId, record: MotionRecord | ItemRecord

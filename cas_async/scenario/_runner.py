@@ -261,7 +261,7 @@ class ScenarioRun:
             if self._world is not None and self._scenario.run.virtual:
                 loop = asyncio.get_running_loop()
                 if isinstance(loop, VirtualTimeLoop):  # no robots here: time stands still
-                    loop.run_windows(Held())
+                    loop.run_windows(Held(self._world.tick))
             starting = asyncio.ensure_future(
                 self._swarm.__aenter__() if self._world is None else self._world.start()
             )
@@ -345,6 +345,8 @@ class ScenarioRun:
             return result
         self._ended = True
         if self._windowed is not None:
+            if status in (RunStatus.INTERRUPTED, RunStatus.FAILED):
+                self._windowed.observe_now()
             self._windowed.stop()
         result.status = status
         if failure is not None:
@@ -362,6 +364,8 @@ class ScenarioRun:
         measure_positions(result, self._mission, self.trace)
         if self._world is not None:
             result.extra.update(self._world.stats())
+        elif self._windowed is not None:
+            result.extra["windows"] = self._windowed.rounds
         self._count_faults()
         if self._trace_csv is not None:
             try:

@@ -59,6 +59,7 @@ class WindowedRun:
         """Whether the run reached ``max_time`` (or nothing could happen any more)."""
         self.ended = asyncio.Event()
         """Set when the windows end by themselves: timed out, or closing one failed."""
+        self._last = False  # the mission is complete: the window running is the last
         self._windows: Windows | None = None
         self._loop: VirtualTimeLoop | None = None
 
@@ -82,7 +83,6 @@ class WindowedRun:
     ) -> tuple[RunStatus, BaseException | None]:
         """Waits for the end of the run: which it is, and the failure of a failed one."""
         waits = {
-            "complete": asyncio.ensure_future(complete.wait()),
             "windows": asyncio.ensure_future(self.ended.wait()),
             "swarm": asyncio.ensure_future(running),
             "stop": asyncio.ensure_future(stop.wait()),
@@ -95,7 +95,7 @@ class WindowedRun:
             for task in waits.values():
                 with contextlib.suppress(asyncio.CancelledError, Exception):
                     await task
-        if waits["complete"] in done or complete.is_set():
+        if complete.is_set():
             return RunStatus.COMPLETED, None
         if waits["swarm"] in done:
             return RunStatus.FAILED, waits["swarm"].exception() or RuntimeError(
@@ -124,6 +124,15 @@ class WindowedRun:
         self._windows = Windows(loop, loop.time() + self.latency, self._close, self.ended.set)
         loop.run_windows(self._windows)
 
+    def observe_now(self) -> None:
+        """Observes what the robots did since the last window, up to now, without sampling.
+
+        For a run that ends between two windows (interrupted, or failed): it is
+        measured where it stands, as a run without windows is.
+        """
+        if self._loop is not None:
+            self._observer.apply([self._recorder.take()], until=self._clock.now())
+
     def stop(self) -> None:
         """The run ended: time moves freely again (the robots are stopped)."""
         if self._windows is not None:
@@ -132,11 +141,24 @@ class WindowedRun:
             self._loop.run_windows(None)
 
     async def _close(self, end: float, next_event: float) -> float | None:
+        """Observes the window that ends at ``end``; the end of the next one, if any.
+
+        The robots run one more window after the one in which the mission was
+        complete, unobserved, as a run across processes does (its workers run a
+        window while the world observes the one before): both measure the same.
+        """
+        if self._last:
+            self.ended.set()
+            return None
         clock = self._clock
         await self._observer.window(clock.at_loop_time(end), [self._recorder.take()])
-        if self._done():
-            return None
         following = clock.at_loop_time(next_event)
+        if self._done():
+            if following >= self._max_time or math.isinf(following):
+                self.ended.set()
+                return None
+            self._last = True
+            return next_event + clock.loop_seconds(self.latency)
         if following >= self._max_time or math.isinf(following):
             # Nothing happens before max_time any more: sample up to it, and time out.
             await self._observer.sample_until(self._max_time, inclusive=False)

@@ -50,6 +50,8 @@ class Windows:
         first_end: where the first window ends (the start plus the latency).
         close: closes a window (see :data:`Closer`).
         failed: called when closing a window raised (see :attr:`failure`).
+        idle: called whenever the closing waited ~50 ms for other threads in vain,
+            so that whoever waits can look at the wall clock.
     """
 
     def __init__(
@@ -58,8 +60,10 @@ class Windows:
         first_end: float,
         close: Closer,
         failed: Callable[[], None] = lambda: None,
+        idle: Callable[[], None] = lambda: None,
     ) -> None:
         self._loop = loop
+        self._idle = idle
         self._end = first_end
         self._close = close
         self._failed = failed
@@ -84,7 +88,10 @@ class Windows:
             self._closing = self._loop.create_task(self._run_close(self._end, next_event))
             return []
         # The closing waits for another thread (another process's news): wait with it.
-        return selector.select(_SELECT)
+        ready = selector.select(_SELECT)
+        if not ready:
+            self._idle()
+        return ready
 
     async def _run_close(self, end: float, next_event: float) -> None:
         try:
@@ -114,13 +121,24 @@ class Held:
     """Windows that never open: the loop's time stands still (a world process waits on others).
 
     While a world waits for its workers, nothing on its own loop may make time
-    jump (a stray timer would): the idle loop only waits for other threads.
+    jump (a stray timer would): the idle loop only waits for other threads, and
+    calls ``idle`` every time it waited for nothing (about every 50 ms), so that
+    whoever waits can look at the wall clock.
+
+    Args:
+        idle: called when a wait for other threads ended with nothing.
     """
 
     end = -math.inf
+
+    def __init__(self, idle: Callable[[], None] = lambda: None) -> None:
+        self._idle = idle
 
     def closed(
         self, next_event: float, selector: selectors.BaseSelector
     ) -> list[tuple[selectors.SelectorKey, int]]:
         """Waits for other threads (the workers' news), never moving time."""
-        return selector.select(_SELECT)
+        ready = selector.select(_SELECT)
+        if not ready:
+            self._idle()
+        return ready

@@ -7,9 +7,14 @@ process) and starts its share. Its robots talk through a
 :class:`~._network.ProcessNetwork`; on virtual time its loop moves in windows
 (:mod:`._windows`): when every event before a window's end has run, the worker
 publishes its :class:`~._control.Window` and waits for the other workers' windows
-and the world's :class:`~._control.Grant` of the next one. On scaled time it
+and the world's :class:`~._control.Grant` of the next one (see :mod:`._control`). On scaled time it
 publishes what its robots did as it goes, from simulated time 0 on, which is the
 wall-clock instant the world's :class:`~._control.Go` names.
+
+A worker stops by itself when its world is gone: the world beats every
+:data:`~._control.BEAT_EVERY`; when its liveliness token goes (a hint, not proof)
+it has :data:`~._control.SUSPECT_LIMIT` to say something, and any silence longer
+than ``run.window_limit`` ends the worker all the same.
 """
 
 from __future__ import annotations
@@ -21,8 +26,9 @@ import secrets
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
 from .._clock import Clock, ScaledClock
 from .._runner import run
@@ -31,6 +37,7 @@ from .._swarm_key import SwarmKey
 from .._virtual_loop import VirtualTimeLoop
 from ..transport._zenoh import import_zenoh, loopback_config
 from ._control import (
+    SUSPECT_LIMIT,
     WORLD,
     Bye,
     Channel,
@@ -45,21 +52,22 @@ from ._control import (
     Stop,
     Welcome,
     Window,
+    next_instant,
 )
 from ._loader import Scenario, scenario_from_data
 from ._network import ProcessNetwork
 from ._observer import Recorder
 from ._processes import WorkerLost, within
 from ._run_transport import faulty
-from ._windows import Windows
+from ._windows import Held, Windows
 
 __all__ = ["LOBBY", "run_worker"]
 
 LOBBY: Final = "cas_async/lobby"
 HEARTBEAT: Final = 0.05
 """Wall seconds between two reports of a worker's simulated time, on scaled time."""
-COUNTS_EVERY: Final = 64
-"""Windows between two counts a worker reports (the last ones come with its ``Bye``)."""
+COUNTS_EVERY: Final = 1.0
+"""Wall seconds between two counts a worker reports (the last ones come with its ``Bye``)."""
 _HELLO_EVERY: Final = 0.25
 
 
@@ -109,10 +117,14 @@ async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
     raise WorkerLost(f"worker: the world at {connect} answered {type(message).__name__}")
 
 
-def run_worker(connect: str, key: SwarmKey | None, *, listen: tuple[str, ...] = ()) -> int:
+def run_worker(
+    connect: str, key: SwarmKey | None, *, listen: tuple[str, ...] = (), quiet: bool = False
+) -> int:
     """A worker process from start to end: joins the world at ``connect``, runs its share.
 
-    Returns the exit code: 0 when the world stopped the run, 1 when this worker failed.
+    Says on stderr which worker it is and which robots it runs, unless ``quiet``
+    (a worker the world started itself). Returns the exit code: 0 when the world
+    stopped the run, 1 when this worker failed.
 
     Raises:
         ConfigurationError: the world cannot be reached, or refused this worker.
@@ -120,6 +132,13 @@ def run_worker(connect: str, key: SwarmKey | None, *, listen: tuple[str, ...] = 
     """
     welcome = asyncio.run(join(connect, key, 60.0))
     scenario = scenario_from_data(Path(welcome.path), welcome.data)
+    if not quiet:
+        share = welcome.shares[welcome.index]
+        print(
+            f"worker {welcome.index} of {len(welcome.shares)}: its {len(share)} robots: "
+            + ", ".join(map(str, share)),
+            file=sys.stderr,
+        )
     worker = _Worker(scenario, welcome, connect, key, listen)
     if scenario.run.virtual:
         with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
@@ -144,7 +163,8 @@ class _Worker:
         self._listen = listen
         self._k = 0
         self._peers: dict[int, dict[int, Window]] = {}  # window -> worker -> its Window
-        self._grants: dict[int, Grant] = {}
+        self._grants: set[int] = set()  # the windows the world let run, not run yet
+        self._counted = time.monotonic()  # when the counts were last reported
         self._stop: asyncio.Event | None = None
         self._news: asyncio.Event | None = None  # something came in: look again
         self._go: asyncio.Future[float] | None = None
@@ -155,6 +175,10 @@ class _Worker:
         self._flushing = False
         self._clock: Clock | None = None
         self._final: Counts | None = None  # the counts as the run ended (virtual time)
+        self._waited = 0.0  # wall seconds waiting for the others and for grants
+        self._world_word = time.monotonic()  # when the world last said something
+        self._world_suspect = False  # its token went: it has SUSPECT_LIMIT to say something
+        self._world_lost: str | None = None
 
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
@@ -190,17 +214,23 @@ class _Worker:
             session, welcome.namespace, self._index, self._key, self._on_message
         )
         failed: str | None = None
-        token = None
+        token = world_watch = None
         try:
             channel.listen("all")
             channel.listen("win/*")
             token = session.liveliness().declare_token(f"{welcome.namespace}/worker/{self._index}")
+            world_watch = session.liveliness().declare_subscriber(
+                f"{welcome.namespace}/world",
+                lambda sample: self._world_token(loop, sample.kind),
+                history=True,  # the token there already: so its loss is seen too
+            )
             await swarm.open()
             channel.send("world", Ready())
             epoch = await within(self._go, scenario.run.window_limit, "the world's go")
             if virtual:
                 assert isinstance(loop, VirtualTimeLoop)
-                loop.run_windows(Windows(loop, loop.time() + scenario.network.latency, self._close))
+                first_end = loop.time() + scenario.network.latency
+                loop.run_windows(Windows(loop, first_end, self._close, idle=self._tick))
             elif isinstance(clock, ScaledClock):
                 clock.start_at_wall(epoch)
                 await asyncio.sleep(max(0.0, epoch - time.time()))  # nothing before time 0
@@ -222,19 +252,22 @@ class _Worker:
             traceback.print_exc()
         finally:
             if virtual and isinstance(loop, VirtualTimeLoop):
-                loop.run_windows(None)
+                loop.run_windows(Held())  # the robots stop at the run's last instant
             with contextlib.suppress(Exception):
                 await swarm.halt()
                 swarm.close()
             with contextlib.suppress(Exception):
                 if failed is not None:
                     channel.send("world", Failed(failed))
-                channel.send("world", Bye(self._final or self._counts()))
-            if token is not None:
-                with contextlib.suppress(Exception):
-                    token.undeclare()
+                channel.send("world", Bye(self._final or self._counts(), round(self._waited, 3)))
+            for declared in (token, world_watch):
+                if declared is not None:
+                    with contextlib.suppress(Exception):
+                        declared.undeclare()
             channel.close()
             session.close()
+        if failed is None and self._world_lost is not None:
+            failed = self._world_lost
         if failed is not None:
             print(f"worker {self._index}: {failed}", file=sys.stderr)
         return 1 if failed is not None else 0
@@ -247,30 +280,46 @@ class _Worker:
     # -- virtual time: windows -----------------------------------------------------------
 
     async def _close(self, end: float, next_event: float) -> float | None:
-        """Publishes window ``k`` and waits for the others' and the world's grant."""
+        """Publishes window ``k``; the end of window ``k + 1`` once it may run (see _control)."""
         k = self._k
         recorder, network, channel = self._recorder, self._network, self._channel
         stop, news = self._stop, self._news
         assert recorder is not None and network is not None and channel is not None  # noqa: PT018
         assert stop is not None and news is not None  # noqa: PT018
-        counts = self._counts() if k % COUNTS_EVERY == COUNTS_EVERY - 1 else Counts()
-        channel.send(
-            f"win/{self._index}",
-            Window(k, next_event, recorder.take(), network.take_outgoing(), counts),
-        )
-        workers = len(self._welcome.shares)
-        while not stop.is_set():
-            if k in self._grants and len(self._peers.get(k, {})) >= workers - 1:
-                break
-            news.clear()
-            await news.wait()
+        counts = Counts()
+        if time.monotonic() - self._counted >= COUNTS_EVERY:
+            self._counted, counts = time.monotonic(), self._counts()
+        own = Window(k, next_event, recorder.take(), network.take_outgoing(), counts)
+        channel.send(f"win/{self._index}", own)
+        others = len(self._welcome.shares) - 1
+        began = time.perf_counter()
+        await self._until(lambda: len(self._peers.get(k, ())) >= others)
+        peers = self._peers.pop(k, {})
+        following = next_instant([own, *peers.values()], self._scenario.network.latency)
+        if following < self._scenario.run.max_time:
+            await self._until(lambda: k + 1 in self._grants)
+        else:  # the run is over: the world stops it
+            await self._until(lambda: False)
+        self._waited += time.perf_counter() - began
         if stop.is_set():
             self._final = self._counts()  # as the run ended: before the robots stop
+            loop = asyncio.get_running_loop()
+            if isinstance(loop, VirtualTimeLoop):
+                loop.run_windows(Held())  # the robots stop at the run's last instant
             return None
-        for worker, peer in sorted(self._peers.pop(k, {}).items()):
+        for worker, peer in sorted(peers.items()):
             network.receive(worker, peer.observation, peer.remote)
+        self._grants.discard(k + 1)
         self._k = k + 1
-        return self._grants.pop(k).end
+        return following + self._scenario.network.latency
+
+    async def _until(self, condition: Callable[[], bool]) -> None:
+        """Waits until ``condition`` holds or the run is stopped."""
+        stop, news = self._stop, self._news
+        assert stop is not None and news is not None  # noqa: PT018
+        while not stop.is_set() and not condition():
+            news.clear()
+            await news.wait()
 
     # -- scaled time: as it goes ---------------------------------------------------------
 
@@ -292,10 +341,51 @@ class _Worker:
         while True:
             await asyncio.sleep(HEARTBEAT)
             self._flush()
+            self._check_world()
+
+    # -- the world -----------------------------------------------------------------------
+
+    def _tick(self) -> None:
+        """Virtual time: the loop waited ~50 ms in vain for news; look at the wall clock."""
+        self._check_world()
+        if self._news is not None:
+            self._news.set()
+
+    def _world_token(self, loop: asyncio.AbstractEventLoop, kind: Any) -> None:
+        """On a Zenoh thread: the world's token went (a hint to check, never proof)."""
+        if kind == import_zenoh().SampleKind.DELETE:
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(self._world_suspected)
+
+    def _world_suspected(self) -> None:
+        self._world_suspect = True
+
+    def _check_world(self) -> None:
+        """Stops this worker if the world said nothing for too long (see the module docs).
+
+        The world beats every :data:`BEAT_EVERY`; a world whose token went has
+        :data:`SUSPECT_LIMIT` to say something, any other :attr:`RunConfig.window_limit`.
+        """
+        if self._world_lost is not None:
+            return
+        limit = SUSPECT_LIMIT if self._world_suspect else self._scenario.run.window_limit
+        if time.monotonic() - self._world_word <= limit:
+            return
+        self._world_lost = (
+            f"the world is gone: its token went and no word came within {limit:g} s"
+            if self._world_suspect
+            else f"the world said nothing for {limit:g} s (run.window_limit): frozen, or cut off"
+        )
+        if self._stop is not None:
+            self._stop.set()
+        if self._go is not None and not self._go.done():
+            self._go.set_exception(WorkerLost(self._world_lost))
 
     # -- what comes in -------------------------------------------------------------------
 
     def _on_message(self, suffix: str, sender: int, message: Control) -> None:
+        if sender == WORLD:  # a signed word: it lives
+            self._world_word, self._world_suspect = time.monotonic(), False
         match message:
             case Window() if sender != self._index and 0 <= sender < len(self._welcome.shares):
                 if message.k < 0:  # scaled time: at once
@@ -303,8 +393,8 @@ class _Worker:
                         self._network.receive(sender, message.observation, message.remote)
                 elif message.k >= self._k:
                     self._peers.setdefault(message.k, {})[sender] = message
-            case Grant() if sender == WORLD and message.k >= self._k:
-                self._grants[message.k] = message
+            case Grant(k=k) if sender == WORLD and k > self._k:
+                self._grants.add(k)
             case Go(epoch=epoch) if sender == WORLD:
                 if self._go is not None and not self._go.done():
                     self._go.set_result(epoch)

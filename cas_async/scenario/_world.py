@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import math
 import os
 import secrets
 import socket
@@ -37,7 +36,10 @@ from ..transport._memory import MemoryTransport
 from ..transport._zenoh import import_zenoh, loopback_config
 from ._app import Mission
 from ._control import (
+    BEAT_EVERY,
+    SUSPECT_LIMIT,
     WORLD,
+    Beat,
     Bye,
     Channel,
     Control,
@@ -51,8 +53,9 @@ from ._control import (
     Stop,
     Welcome,
     Window,
+    next_instant,
 )
-from ._loader import Scenario
+from ._loader import DEFAULT_LATENCY, Scenario
 from ._observer import Observation, Observer
 from ._partition import partition
 from ._processes import WorkerLost, within
@@ -63,8 +66,6 @@ __all__ = ["World"]
 
 STOP_LIMIT: Final = 10.0
 """Wall seconds the world waits for its workers' last counts, all together."""
-SUSPECT_LIMIT: Final = 2.0
-"""Wall seconds a worker whose token went has to prove it lives (a signed message)."""
 HELLO_AGE: Final = 30.0
 """Wall seconds a worker's hello stays fresh (an older one is a replay)."""
 _STDERR_LINES: Final = 12
@@ -96,6 +97,13 @@ class World:
     ) -> None:
         if workers < 1:
             raise ConfigurationError(f"a run across processes needs >= 1 worker, got {workers}")
+        if scenario.network.latency <= 0:
+            raise ConfigurationError(
+                f"{scenario.path}: network.latency = 0 runs in one process only: a run across "
+                "processes needs a latency > 0, the simulated time a process may run ahead of "
+                "the others without hearing from them (leave it out for the default, "
+                f"{DEFAULT_LATENCY} s)"
+            )
         import_zenoh()  # a clear error now, before anything starts
         if key is None and spawn:
             key = SwarmKey(secrets.token_bytes(32))
@@ -120,13 +128,19 @@ class World:
         self._flowing: list[Observation] = []  # scaled time: records not applied yet
         self._heard: dict[int, float] = {}  # scaled time: each worker's simulated time heard
         self._suspect: set[int] = set()  # workers whose token went: to prove they live
+        self._last_word: dict[int, float] = {}  # a worker -> when it last said something
+        self._beaten = 0.0  # when the world last said it lives (Beat)
+        self._token_of_world: Any = None
         self._lost: BaseException | None = None
         self._news: asyncio.Event | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._pids: dict[int, int] = {}  # a spawned worker's process id -> its index
         self._shares: list[list[RobotId]] = []
+        self._waited: dict[int, float] = {}  # a worker -> wall seconds it waited (its Bye)
         self.rounds = 0
         """Windows closed so far (virtual time)."""
+        self.effects = 0
+        """Effects (datagrams, hand-over steps) from a worker's robots to another's."""
         self.endpoint = ""
         """Where the router listens, once started."""
 
@@ -164,6 +178,8 @@ class World:
         """
         self._news = asyncio.Event()
         self._loop = asyncio.get_running_loop()
+        if not self._scenario.run.virtual:  # else the held loop ticks
+            self._watchers.append(asyncio.ensure_future(self._ticking()))
         zenoh = import_zenoh()
         self.endpoint = _with_free_port(self._listen)
         config = loopback_config(mode="router", listen=[self.endpoint])
@@ -178,6 +194,7 @@ class World:
         )
         channel.listen("world")
         channel.listen("win/*")
+        self._token_of_world = self._session.liveliness().declare_token(f"{self.namespace}/world")
         self._tokens = self._session.liveliness().declare_subscriber(
             f"{self.namespace}/worker/*",
             lambda sample: self._token(str(sample.key_expr), sample.kind),
@@ -192,11 +209,19 @@ class World:
     async def coordinate(
         self, observer: Observer, done: Callable[[], bool], stop: asyncio.Event
     ) -> tuple[RunStatus, BaseException | None]:
-        """Observes every window and grants the next, until the run ends (virtual time)."""
+        """Observes every window and grants the ones after it, until the run ends (virtual time).
+
+        The workers run window ``k + 1`` while the world observes window ``k``: the
+        world grants window ``k + 2`` once it has observed ``k`` (see
+        :mod:`._control`). So a run whose mission was complete in window ``c``
+        runs window ``c + 1`` too (a run in one process does the same, see
+        :mod:`._windowed`), and measures the same.
+        """
         scenario, channel = self._scenario, self._channel
         assert channel is not None
         latency, max_time = scenario.network.latency, scenario.run.max_time
         end, k = latency, 0
+        channel.send("all", Grant(1))
         while True:
             try:
                 windows = await self._windows_of(k, stop)
@@ -204,28 +229,20 @@ class World:
                 return RunStatus.FAILED, lost
             if windows is None:
                 return RunStatus.INTERRUPTED, None
+            for window in windows.values():
+                self.effects += len(window.remote)
+            completed = done()  # in the window before: this one was the last
             await observer.window(end, [windows[w].observation for w in sorted(windows)])
             self.rounds += 1
-            if done():
+            following = next_instant(windows.values(), latency)
+            if completed or (done() and following >= max_time):
                 return RunStatus.COMPLETED, None
-            next_event = min(
-                (
-                    t
-                    for window in windows.values()
-                    for t in (
-                        window.next_event,
-                        *(remote.at for remote in window.remote),
-                        *(m.t + latency for m in window.observation.motions),
-                    )
-                ),
-                default=math.inf,
-            )
-            if next_event >= max_time or math.isinf(next_event):
-                await observer.sample_until(max_time, inclusive=False)
-                return RunStatus.TIMED_OUT, None
-            end = next_event + latency
-            channel.send("all", Grant(k, end))
-            k += 1
+            if not done():
+                if following >= max_time:
+                    await observer.sample_until(max_time, inclusive=False)
+                    return RunStatus.TIMED_OUT, None
+                channel.send("all", Grant(k + 2))
+            end, k = following + latency, k + 1
 
     async def follow(self, observer: Observer) -> None:
         """Applies what the workers report as it comes (scaled time); raises when one is lost.
@@ -238,9 +255,19 @@ class World:
         """
         news = self._news
         assert news is not None
+        limit, started = self._scenario.run.window_limit, time.monotonic()
         while True:
             if self._lost is not None:
                 raise self._lost
+            now = time.monotonic()
+            silent = [
+                w
+                for w in range(self._workers)
+                if now - self._last_word.get(w, started)
+                > (SUSPECT_LIMIT if w in self._suspect else limit)
+            ]
+            if silent:  # a worker reports every HEARTBEAT: this one stopped
+                raise self._silence(silent, "", limit)
             if len(self._heard) == self._workers and self._flowing:
                 horizon = min(self._heard.values())
                 ready, later = [], []
@@ -271,18 +298,31 @@ class World:
             missing = [w for w in range(self._workers) if w not in got]
             waited = time.monotonic() - started
             suspect = [w for w in missing if w in self._suspect]
-            bound = SUSPECT_LIMIT if suspect else limit
-            if waited > bound:
-                who = suspect or missing
-                raise WorkerLost(
-                    f"window {k}: no word from worker{'s' if len(who) > 1 else ''} "
-                    f"{', '.join(map(str, who))} within {bound:g} s: "
-                    f"{'its process is gone' if suspect else 'frozen, or lost'}; "
-                    f"its robots are lost: {self._robots_of(who)}"
-                )
+            if waited > (SUSPECT_LIMIT if suspect else limit):
+                raise self._silence(suspect or missing, f" for window {k}", limit)
             news.clear()
-            with contextlib.suppress(WorkerLost):
-                await within(news.wait(), max(0.01, bound - waited), "news")
+            await news.wait()  # news, or a tick (see tick): the wall clock is looked at again
+
+    def tick(self) -> None:
+        """Look at the wall clock again: called every ~50 ms while the world waits.
+
+        On virtual time by the held loop (see :class:`~._windows.Held`), on scaled
+        time by the world's own ticking: a worker that never answers ends the run
+        all the same.
+        """
+        if self._news is not None:
+            self._news.set()
+        now = time.monotonic()
+        if self._channel is not None and now - self._beaten >= BEAT_EVERY:
+            self._beaten = now
+            with contextlib.suppress(Exception):
+                self._channel.send("all", Beat())
+
+    async def _ticking(self) -> None:
+        """Scaled time: :meth:`tick` every 50 ms of the loop's (real) time."""
+        while True:
+            await asyncio.sleep(0.05)
+            self.tick()
 
     async def finish(self) -> None:
         """The run ended: every worker stops its robots; their last counts, all at once."""
@@ -301,8 +341,18 @@ class World:
                 )
 
     def stats(self) -> dict[str, float | int | str]:
-        """What the distribution cost: workers, windows, refusals on the control plane."""
-        return {"workers": self._workers, "windows": self.rounds}
+        """What the distribution cost: workers, windows, the longest wait of a worker.
+
+        ``worker_waited_s``: the most wall seconds a worker spent waiting for the
+        others' windows and for grants.
+        """
+        waited = max(self._waited.values(), default=0.0)
+        return {
+            "workers": self._workers,
+            "windows": self.rounds,
+            "cross_process_effects": self.effects,
+            "worker_waited_s": waited,
+        }
 
     def message_counts(self) -> tuple[dict[str, dict[str, int]], dict[str, int]]:
         """Every worker's message counts by kind and class, and drop reasons, summed.
@@ -331,9 +381,10 @@ class World:
         for channel in (self._channel, self._lobby):
             if channel is not None:
                 channel.close()
-        if self._tokens is not None:
-            with contextlib.suppress(Exception):
-                self._tokens.undeclare()
+        for declared in (self._tokens, self._token_of_world):
+            if declared is not None:
+                with contextlib.suppress(Exception):
+                    declared.undeclare()
         await asyncio.gather(*(self._reap(child) for child in self._children))
         for watcher in self._watchers:
             watcher.cancel()
@@ -355,6 +406,7 @@ class World:
                 "worker",
                 "--connect",
                 self.endpoint,
+                "--quiet",
                 env=env,
                 stdin=asyncio.subprocess.DEVNULL,
                 stderr=asyncio.subprocess.PIPE,
@@ -380,8 +432,8 @@ class World:
         who = "a worker" if index is None else f"worker {index}"
         self._lose(
             WorkerLost(
-                f"{who} (process {child.pid}) exited with code {code} {when}: {said}"
-                + ("" if index is None else self._their_robots(index))
+                f"{who} is gone: its process {child.pid} exited with code {code} {when}: {said}"
+                + ("" if index is None else self._lost_robots([index]))
             )
         )
 
@@ -408,12 +460,27 @@ class World:
         while not condition():
             if self._lost is not None:
                 raise self._lost
-            left = deadline - time.monotonic()
-            if left <= 0:
+            if time.monotonic() > deadline:
                 raise WorkerLost(f"gave up after {seconds:g} s waiting for {what}")
             news.clear()
-            with contextlib.suppress(WorkerLost):
-                await within(news.wait(), left, what)
+            await news.wait()  # news, or a tick
+
+    def _silence(self, who: list[int], where: str, limit: float) -> WorkerLost:
+        """The loss of workers that said nothing for too long (their token gone, or not)."""
+        gone = all(w in self._suspect for w in who)
+        many = len(who) > 1
+        return WorkerLost(
+            f"worker{'s' if many else ''} {', '.join(map(str, who))} "
+            + (
+                f"{'are' if many else 'is'} gone: {'their tokens' if many else 'its token'} "
+                "went and no word came"
+                f"{where} within {SUSPECT_LIMIT:g} s"
+                if gone
+                else f"{'are' if many else 'is'} frozen or cut off: no word{where} "
+                f"within {limit:g} s (run.window_limit)"
+            )
+            + self._lost_robots(who)
+        )
 
     def _lose(self, lost: BaseException) -> None:
         if self._lost is None:
@@ -421,16 +488,16 @@ class World:
         if self._news is not None:
             self._news.set()
 
-    def _robots_of(self, workers: Sequence[int]) -> str:
+    def _lost_robots(self, workers: Sequence[int]) -> str:
+        """``; its N robots are lost: 1, 3, ...`` for these workers' robots."""
         ids = [robot for w in workers if w < len(self._shares) for robot in self._shares[w]]
-        shown = ", ".join(str(i) for i in ids[:20])
-        return shown + (f", ... ({len(ids) - 20} more)" if len(ids) > 20 else "")
-
-    def _their_robots(self, index: int) -> str:
-        if not self._shares:
+        if not ids:
             return ""
-        robots = self._robots_of([index])
-        return f"; worker {index}'s robots are lost: {robots}"
+        shown = ", ".join(str(i) for i in ids[:20])
+        more = f", ... ({len(ids) - 20} more)" if len(ids) > 20 else ""
+        return (
+            f"; {'their' if len(workers) > 1 else 'its'} {len(ids)} robots are lost: {shown}{more}"
+        )
 
     # -- what comes in -----------------------------------------------------------------
 
@@ -457,6 +524,7 @@ class World:
         if not 0 <= sender < self._workers:
             raise ValueError(f"a message from no worker ({sender})")
         self._suspect.discard(sender)  # a signed word: it lives
+        self._last_word[sender] = time.monotonic()
         match message:
             case Window(k=k):
                 if message.counts.internal or message.counts.external or message.counts.dropped:
@@ -470,8 +538,9 @@ class World:
                 self._ready.add(sender)
             case Failed(error=error):
                 self._lose(WorkerLost(f"worker {sender} failed: {error}"))
-            case Bye(counts=counts):
+            case Bye(counts=counts, waited=waited):
                 self._counts[sender] = counts
+                self._waited[sender] = waited
                 self._byes.add(sender)
         if self._news is not None:
             self._news.set()

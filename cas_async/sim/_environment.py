@@ -45,7 +45,6 @@ from .._errors import ConfigurationError, SimulationError, UnknownRobotError
 from .._pose import Pose
 from .._positions import Positions
 from .._types import ItemId, RobotId
-from ._authority import ItemAuthority
 from ._grid import CellGrid
 from ._items import ItemLedger
 from ._kinematics import Motion
@@ -177,7 +176,6 @@ class Environment:
         # robots query the same instant, and any change of motion clears it.
         self._cache: tuple[float, Positions] | None = None
         self._motion_watchers: list[Callable[[RobotId, Motion, float], None]] = []
-        self._authority: ItemAuthority | None = None
 
     # -- across processes -------------------------------------------------------------
 
@@ -188,15 +186,6 @@ class Environment:
         form, so every process keeps every pose (see :meth:`start_motion`).
         """
         self._motion_watchers.append(callback)
-
-    @property
-    def item_authority(self) -> ItemAuthority | None:
-        """Where the hands' item operations are decided, when not in this ledger."""
-        return self._authority
-
-    @item_authority.setter
-    def item_authority(self, authority: ItemAuthority | None) -> None:
-        self._authority = authority
 
     # -- membership -------------------------------------------------------------------
 
@@ -373,11 +362,16 @@ class Environment:
             SimulationError: as :meth:`start_motion`, for another process's robot.
         """
         robot = self._robot(robot_id)
-        if not robot.local:
-            self.start_motion(robot_id, motion, start_time)
         seen = self._seen
         if seen is None:
+            if not robot.local:
+                self.start_motion(robot_id, motion, start_time)
             return
+        if not robot.local:  # it is here what it is seen to be: no more is known of it
+            robot.odometer = robot.travelled(start_time)
+            robot.motion, robot.since = motion, start_time
+            self._table.set(robot.index, start_time, motion)
+            self._cache = None
         robot.seen, robot.seen_since = motion, start_time
         seen.set(robot.index, start_time, motion)
         if self._grid is not None:
@@ -632,8 +626,13 @@ class Environment:
         """Hand-over ``n`` of ``giver`` (sent at ``sent``) reaches ``receiver`` now, ``sent + L``.
 
         Taken or refused here (see :meth:`send_item`); the answer goes back to the giver.
+        On scaled real time a hand-over that comes late (from another process) is
+        taken when it came, never before what was recorded since.
         """
         t = sent + self.latency
+        clock = self._clock
+        if clock is not None and not clock.is_virtual:
+            t = max(t, clock.now())
         refused = self._refusal(item, giver, receiver, t, reach)
         if refused is None:
             self._items.arrive(item, giver, receiver, t)

@@ -181,12 +181,12 @@ class SimulatedMiddleware(Middleware):
 class SimulatedHands(Hands):
     """A robot's hands in an :class:`Environment`: its items, in the Environment's ledger.
 
-    Every operation happens at ``clock.now()`` and completes before it returns
-    (nothing is awaited inside), so a hand-over is atomic in the simulation too.
-    When the Environment has an :attr:`~Environment.item_authority` (a simulation
-    spread over processes), each operation is decided there instead, and awaited.
-    A gripper's time to grasp or release is the robotic layer's to wait for, on
-    its clock, around the call.
+    Every operation happens at ``clock.now()``. Without a latency each completes
+    before it returns (nothing is awaited inside), so a hand-over is atomic in the
+    simulation too; with the Environment's latency, a hand-over returns when the
+    receiver's answer is back (see :meth:`Environment.send_item`). A gripper's
+    time to grasp or release is the robotic layer's to wait for, on its clock,
+    around the call.
 
     Args:
         environment: the world the robot is in.
@@ -223,38 +223,26 @@ class SimulatedHands(Hands):
 
     async def items(self) -> tuple[ItemId, ...]:
         """The items the robot holds now, in the order it received them."""
-        authority = self._environment.item_authority
-        if authority is not None:
-            return await authority.held_by(self._robot_id)
         return self._environment.items.held_by(self._robot_id)
 
     async def accept_from(self, giver: RobotId) -> None:
         """Takes items from ``giver`` from now on (see :meth:`Environment.accept_from`)."""
-        authority = self._environment.item_authority
-        if authority is not None:
-            await authority.accept_from(self._robot_id, giver)
-        else:
-            self._environment.accept_from(self._robot_id, giver)
+        self._environment.accept_from(self._robot_id, giver)
 
     async def refuse_from(self, giver: RobotId) -> None:
         """Takes no more items from ``giver`` (see :meth:`Environment.refuse_from`)."""
-        authority = self._environment.item_authority
-        if authority is not None:
-            await authority.refuse_from(self._robot_id, giver)
-        else:
-            self._environment.refuse_from(self._robot_id, giver)
+        self._environment.refuse_from(self._robot_id, giver)
 
     async def create_item(self) -> ItemId:
         """Creates an item in the robot's hands at ``clock.now()`` and returns its id."""
-        authority = self._environment.item_authority
-        if authority is not None:
-            return await authority.create_item(self._robot_id, self._clock.now())
         return self._environment.create_item(self._robot_id, self._clock.now())
 
     async def hand_over(self, item: ItemId, receiver: RobotId) -> None:
         """Gives ``item`` to ``receiver`` at ``clock.now()``: the one moment it changes hands.
 
-        Allowed during a move too: the positions are exact at that instant.
+        Allowed during a move too: the positions are exact at that instant. Over
+        the Environment's latency, if it has one, the item arrives later and the
+        receiver's answer comes back later still (see :meth:`Environment.send_item`).
 
         Raises:
             UnknownRobotError: ``receiver`` is not in the environment.
@@ -262,13 +250,6 @@ class SimulatedHands(Hands):
                 robot does not hold ``item``, ``receiver`` is this robot, or its
                 hands are not held out to this robot.
         """
-        authority = self._environment.item_authority
-        if authority is not None:
-            await authority.hand_over(
-                item, self._robot_id, receiver, self._clock.now(), reach=self._reach
-            )
-            return
-        # Over the Environment's latency, if it has one: the outcome comes back later.
         await self._environment.send_item(
             item, self._robot_id, receiver, self._clock.now(), reach=self._reach
         )
@@ -279,11 +260,7 @@ class SimulatedHands(Hands):
         Raises:
             SimulationError: this robot does not hold ``item``.
         """
-        authority = self._environment.item_authority
-        if authority is not None:
-            await authority.retire_item(item, self._robot_id, self._clock.now())
-        else:
-            self._environment.retire_item(item, self._robot_id, self._clock.now())
+        self._environment.retire_item(item, self._robot_id, self._clock.now())
 
     def __repr__(self) -> str:
         return f"SimulatedHands(robot_id={self._robot_id}, reach={self._reach:g})"

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from cas_async.scenario import RunResult, Trace
-from cas_async.sim import Environment
+from cas_async.sim import Environment, ItemEvent, ItemEventKind
 from cas_async.testing import run_scenario_file
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "apps" / "fire_brigade" / "scenarios"
@@ -19,21 +20,21 @@ def run_checked(
     *,
     virtual: bool = True,
     observe: Callable[[Environment], None] | None = None,
-) -> tuple[RunResult, Trace, int]:
+) -> tuple[RunResult, Trace, Counter[ItemEventKind]]:
     """Runs a scenario with the full item audit after every item event.
 
-    Returns the result, the trace, and how many times the audit ran. ``observe``
-    is also called with the Environment before the robots start.
+    Returns the result, the trace, and how many times the audit ran, by the kind
+    of the event it followed. ``observe`` is also called with the Environment
+    before the robots start.
     """
-    audits = 0
+    audits: Counter[ItemEventKind] = Counter()
 
     def audit_every_event(environment: Environment) -> None:
         ledger = environment.items
 
-        def check(_event: object) -> None:
-            nonlocal audits
+        def check(event: ItemEvent) -> None:
             ledger.check()
-            audits += 1
+            audits[event.kind] += 1
 
         ledger.subscribe(check)
         if observe is not None:

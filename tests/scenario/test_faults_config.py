@@ -12,6 +12,7 @@ import pytest
 import cas_async
 from cas_async import Faults, Layer, Message, Pose, Robot, message
 from cas_async.scenario import (
+    DEFAULT_LATENCY,
     FaultsConfig,
     Mission,
     RunResult,
@@ -300,7 +301,8 @@ def test_a_run_without_faults_has_none(write: WriteScenario) -> None:
     assert result.status is RunStatus.COMPLETED
     assert result.faults is None
     assert not any(line.startswith("faults") for line in summary_table(result).splitlines())
-    assert result.makespan == pytest.approx(3.9)  # ping 0 at t=0, ping 39 at t=3.9
+    # ping 0 at t=0, ping 39 sent at t=3.9 and received the network's latency later
+    assert result.makespan == pytest.approx(3.9 + DEFAULT_LATENCY)
 
 
 def test_loss_slows_the_run_down(write: WriteScenario) -> None:

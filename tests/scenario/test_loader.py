@@ -139,9 +139,9 @@ def test_app_attribute_after_a_colon(write: WriteScenario) -> None:
         pytest.param(
             "sede = 1",
             "run",
-            "unknown key 'sede' (did you mean 'seed'? expected one of: max_time, pass_objects, "
-            "progress_interval, restart_window, restarts, seed, time_factor, trace_exchanges, "
-            "trace_interval, transport, virtual)",
+            "unknown key 'sede' (did you mean 'seed'? expected one of: max_time, partition, "
+            "pass_objects, progress_interval, restart_window, restarts, seed, time_factor, "
+            "trace_exchanges, trace_interval, transport, virtual, window_limit)",
             id="unknown",
         ),
     ],
@@ -183,7 +183,7 @@ def test_problems_of_every_section_are_reported_together(write: WriteScenario) -
                 (
                     "",
                     "unknown key 'robot' (did you mean 'robots'? "
-                    "expected one of: app, faults, label, layers, robots, run, world)",
+                    "expected one of: app, faults, label, layers, network, robots, run, world)",
                 )
             ],
             id="app-section",
@@ -196,7 +196,7 @@ def test_problems_of_every_section_are_reported_together(write: WriteScenario) -
                 (
                     "",
                     "unknown key 'wrold' (did you mean 'world'? "
-                    "expected one of: app, faults, label, layers, robots, run, world)",
+                    "expected one of: app, faults, label, layers, network, robots, run, world)",
                 ),
             ],
             id="runner-section",

@@ -234,7 +234,7 @@ def test_a_mission_has_a_target_or_an_objective_not_both_nor_neither() -> None:
 
 def test_a_mission_of_its_own_is_refused_across_processes(chores: Load) -> None:
     pytest.importorskip("zenoh")  # a World needs it importable; nothing is started here
-    from cas_async.scenario._distributed import World
+    from cas_async.scenario._world import World
 
     scenario = chores(target=5)
     with pytest.raises(ConfigurationError, match="objective ChoreCount is not distributable"):

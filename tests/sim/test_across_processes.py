@@ -18,8 +18,7 @@ from cas_async import (
     Swarm,
     VirtualClock,
 )
-from cas_async.sim import Environment, Motion, SimulatedHands, SimulatedMiddleware
-from cas_async.sim._authority import ItemAuthority
+from cas_async.sim import Environment, Motion, SimulatedMiddleware
 from cas_async.transport import MemoryTransport
 from tests.stacks import STACK_MESSAGES, Recorder
 
@@ -76,63 +75,6 @@ async def test_watchers_see_every_motion_and_halt_and_a_replica_follows_exactly(
     for t in (0.0, 1.0, 2.5, 3.0, 100.0):
         assert replica.pose_at(1, t) == world.pose_at(1, t)
     assert replica.within(2, 20.0, 50.0).ids.tolist() == world.within(2, 20.0, 50.0).ids.tolist()
-
-
-class _Recording(ItemAuthority):
-    """An authority in the same process that records what the hands asked."""
-
-    def __init__(self) -> None:
-        self.asked: list[tuple[object, ...]] = []
-
-    async def create_item(self, robot_id: int, t: float) -> int:
-        self.asked.append(("create_item", robot_id, t))
-        return 42
-
-    async def hand_over(
-        self, item: int, giver: int, receiver: int, t: float, *, reach: float
-    ) -> None:
-        self.asked.append(("hand_over", item, giver, receiver, t, reach))
-
-    async def retire_item(self, item: int, robot_id: int, t: float) -> None:
-        self.asked.append(("retire_item", item, robot_id, t))
-
-    async def accept_from(self, receiver: int, giver: int) -> None:
-        self.asked.append(("accept_from", receiver, giver))
-
-    async def refuse_from(self, receiver: int, giver: int) -> None:
-        self.asked.append(("refuse_from", receiver, giver))
-
-    async def held_by(self, robot_id: int) -> tuple[int, ...]:
-        self.asked.append(("held_by", robot_id))
-        return (42,)
-
-
-@pytest.mark.cas_virtual
-async def test_hands_ask_the_item_authority_and_leave_the_local_ledger_alone() -> None:
-    clock = VirtualClock()
-    env = Environment()
-    env.add_robot(1, Pose(0, 0))
-    env.add_robot(2, Pose(0, 0))
-    authority = env.item_authority = _Recording()
-    hands = SimulatedHands(env, 1, clock, reach=0.5)
-    clock.start()
-    await clock.sleep(1.5)
-    assert await hands.create_item() == 42
-    await hands.accept_from(2)
-    await hands.refuse_from(2)
-    await hands.hand_over(42, 2)
-    await hands.retire_item(42)
-    assert await hands.items() == (42,)
-    assert authority.asked == [
-        ("create_item", 1, 1.5),
-        ("accept_from", 1, 2),
-        ("refuse_from", 1, 2),
-        ("hand_over", 42, 1, 2, 1.5, 0.5),
-        ("retire_item", 42, 1, 1.5),
-        ("held_by", 1),
-    ]
-    assert env.items.created == 0
-    assert not env.items.events
 
 
 def test_a_scaled_clock_started_at_a_wall_instant_reads_the_time_since_then() -> None:
