@@ -63,7 +63,7 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, Final, final
 
 from .._codec import DEFAULT_MAX_DATAGRAM
-from .._errors import ConfigurationError, RobotStateError
+from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .._types import RobotId
 from ._base import DatagramSink, Endpoint, Transport
 from ._thread_inbox import ThreadInbox
@@ -336,22 +336,30 @@ class ZenohTransport(Transport):
         """Whether robot ``robot_id`` is attached to this transport (this process)."""
         return robot_id in self._local
 
-    def publish(self, zid: str, receiver: RobotId, sender: RobotId, data: bytes) -> None:
-        """Publishes one datagram to ``receiver`` in session ``zid``.
+    def send_from(self, sender: RobotId, receiver: RobotId, data: bytes) -> None:
+        """Sends one datagram from robot ``sender`` (of this process) to ``receiver``.
 
-        Reliably: when Zenoh's queues are full, it waits instead of dropping.
+        To another process it is published, reliably (when Zenoh's queues are full,
+        this waits instead of dropping); to this one, it arrives on the loop's next pass.
+
+        Raises:
+            UnknownRobotError: no live token speaks for ``receiver``.
+            RobotStateError: the session is closed.
         """
-        publishers = self._publishers
-        if publishers is None:
+        zid = self._where.get(receiver)
+        if zid is None:
+            raise UnknownRobotError(
+                f"robot {sender}: robot {receiver} is not on this Zenoh swarm "
+                f"(no liveliness token under {self.namespace!r})"
+            )
+        publishers, inbox = self._publishers, self._inbox
+        if publishers is None or inbox is None:
             raise RobotStateError("the Zenoh session is closed")
-        publishers.put_for(zid, receiver, sender)(data)
-        self.sent += 1
-
-    def deliver_here(self, receiver: RobotId, sender: RobotId, data: bytes) -> None:
-        """A datagram between two robots of this process: on the loop's next pass."""
-        inbox = self._inbox
-        if inbox is not None:
+        if zid == self._zid:
             inbox.put((LOCAL, (receiver, sender), data))
+        else:
+            publishers.put_for(zid, receiver, sender)(data)
+            self.sent += 1
 
     def declared_keys(self) -> tuple[int, int]:
         """Datagram keys the session holds declared now: ``(to send, to receive)``."""
@@ -364,13 +372,14 @@ class ZenohTransport(Transport):
     def _drain(self, entries: list[Entry]) -> None:
         local, where = self._local, self._where
         pairs = {} if self._keys is None else self._keys.pairs
+        received = 0
         for kind, what, payload in entries:
             if kind == REMOTE:
                 pair = pairs.get(what) or self._first_from(what)
                 if pair is None:
                     continue
                 receiver, sender = pair
-                self.received += 1
+                received += 1
             elif kind == LOCAL:
                 receiver, sender = what
             else:
@@ -387,6 +396,7 @@ class ZenohTransport(Transport):
                 asyncio.get_running_loop().call_exception_handler(
                     {"message": f"robot {receiver}: sink failed", "exception": exc}
                 )
+        self.received += received
 
     def _first_from(self, key: str) -> tuple[RobotId, RobotId] | None:
         """The ``(receiver, sender)`` of a key not read yet, or ``None`` (counted).
@@ -432,8 +442,10 @@ class ZenohTransport(Transport):
             return
         self._where[robot_id] = zid
         self._departed.pop(robot_id, None)
-        if before is not None and self._publishers is not None:
-            self._publishers.forget_receiver(robot_id)  # it moved to another session
+        if self._publishers is not None and self._keys is not None:
+            self._keys.forget(robot_id)  # keys naming it are weighed for declaring again
+            if before is not None:
+                self._publishers.forget_receiver(robot_id)  # it moved to another session
         waiters, self._waiters = self._waiters, []
         for waiter in waiters:
             if not waiter.done():

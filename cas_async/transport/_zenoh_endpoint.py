@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any, Protocol, final
 
-from .._errors import RobotStateError, UnknownRobotError
+from .._errors import RobotStateError
 from .._types import Address, RobotId
 from ._base import DatagramSink, Endpoint
 
@@ -15,7 +15,6 @@ __all__ = ["ZenohEndpoint", "ZenohNetwork"]
 class ZenohNetwork(Protocol):
     """What an endpoint asks of its transport (:class:`~cas_async.ZenohTransport`)."""
 
-    namespace: str
     max_datagram_size: int
 
     @property
@@ -28,11 +27,8 @@ class ZenohNetwork(Protocol):
     def members(self) -> list[RobotId]:
         """Every robot with a live token."""
 
-    def deliver_here(self, receiver: RobotId, sender: RobotId, data: bytes) -> None:
-        """Hands a datagram to a robot of this process."""
-
-    def publish(self, zid: str, receiver: RobotId, sender: RobotId, data: bytes) -> None:
-        """Publishes a datagram to a robot of session ``zid``."""
+    def send_from(self, sender: RobotId, receiver: RobotId, data: bytes) -> None:
+        """Sends a datagram to ``receiver``, wherever it lives."""
 
     def follow(self, endpoint: ZenohEndpoint, follow: bool) -> None:
         """Whether ``endpoint``'s robot hears of robots joining and leaving."""
@@ -45,13 +41,14 @@ class ZenohNetwork(Protocol):
 class ZenohEndpoint(Endpoint):
     """A robot's attachment to a :class:`~cas_async.ZenohTransport`."""
 
-    __slots__ = ("_closed", "_network", "_sink", "_token", "max_datagram_size", "robot_id")
+    __slots__ = ("_closed", "_network", "_token", "max_datagram_size", "robot_id", "sink")
 
     def __init__(
         self, network: ZenohNetwork, robot_id: RobotId, sink: DatagramSink, token: Any
     ) -> None:
         self._network = network
-        self._sink = sink
+        self.sink = sink
+        """Where this robot's datagrams go."""
         self._token = token
         self._closed = False
         self.robot_id = robot_id
@@ -61,25 +58,10 @@ class ZenohEndpoint(Endpoint):
     def address(self) -> Address:
         return ("zenoh", self._network.zid, self.robot_id)
 
-    @property
-    def sink(self) -> DatagramSink:
-        """Where this robot's datagrams go."""
-        return self._sink
-
     def send(self, robot_id: RobotId, data: bytes) -> None:
         if self._closed:
             raise RobotStateError(f"robot {self.robot_id}: Zenoh endpoint is closed")
-        network = self._network
-        zid = network.zid_of(robot_id)
-        if zid is None:
-            raise UnknownRobotError(
-                f"robot {self.robot_id}: robot {robot_id} is not on this Zenoh swarm "
-                f"(no liveliness token under {network.namespace!r})"
-            )
-        if zid == network.zid:
-            network.deliver_here(robot_id, self.robot_id, data)
-        else:
-            network.publish(zid, robot_id, self.robot_id, data)
+        self._network.send_from(self.robot_id, robot_id, data)
 
     def peers(self) -> Iterable[RobotId]:
         return [rid for rid in self._network.members() if rid != self.robot_id]

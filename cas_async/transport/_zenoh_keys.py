@@ -187,23 +187,26 @@ class Publishers:
 
 
 class ReceivedKeys:
-    """The pair of robots each received key names, read once per key.
+    """The pair of robots each received key names, read once; some keys declared.
 
     :attr:`pairs` maps every key read so far to its ``(receiver, sender)``; it is
     emptied when it reaches :data:`KNOWN_KEYS` (anyone may publish under any key, so
-    it must stay bounded). :meth:`declare` declares a key to the session.
+    it must stay bounded). :meth:`declare` declares a key to the session. When a robot
+    joins or leaves, :meth:`forget` drops the keys that name it: they are read, and
+    weighed for declaring, again.
 
     Args:
         session: the open session (closing it undeclares every key).
         budget: keys to declare at most.
     """
 
-    __slots__ = ("_budget", "_declared", "_session", "pairs")
+    __slots__ = ("_budget", "_declared", "_keys_of", "_session", "pairs")
 
     def __init__(self, session: Any, budget: int = DECLARED) -> None:
         self._session = session
         self._budget = budget
         self.pairs: dict[str, Pair] = {}
+        self._keys_of: dict[RobotId, set[str]] = {}  # robot -> keys of pairs that name it
         self._declared: dict[str, tuple[Pair, Any]] = {}  # key -> (its pair, key expression)
 
     def read(self, key: str) -> Pair | None:
@@ -213,7 +216,10 @@ class ReceivedKeys:
             return None
         if len(self.pairs) >= KNOWN_KEYS:
             self.pairs.clear()
+            self._keys_of.clear()
         self.pairs[key] = pair
+        for robot_id in pair:
+            self._keys_of.setdefault(robot_id, set()).add(key)
         return pair
 
     def declare(self, key: str, pair: Pair) -> None:
@@ -223,7 +229,9 @@ class ReceivedKeys:
             self._budget -= 1
 
     def forget(self, robot_id: RobotId) -> None:
-        """``robot_id`` left: the keys it sends or receives under are undeclared."""
+        """``robot_id`` joined or left: keys naming it are read again, and undeclared."""
+        for key in self._keys_of.pop(robot_id, ()):
+            self.pairs.pop(key, None)
         gone = [key for key, (pair, _) in self._declared.items() if robot_id in pair]
         for key in gone:
             _, expression = self._declared.pop(key)
