@@ -297,9 +297,8 @@ class ZenohTransport(Transport):
         self.follow(endpoint, False)
         if self._local.get(robot_id) is endpoint:
             del self._local[robot_id]
-            if self._publishers is not None and self._keys is not None:
-                self._publishers.forget_sender(robot_id)
-                self._keys.forget(robot_id)
+            if self._publishers is not None:
+                self._publishers.forget_sender(robot_id)  # _left() forgets the rest
             with contextlib.suppress(Exception):  # the session may be closed already
                 token.undeclare()
             self._left(robot_id, self._zid)
