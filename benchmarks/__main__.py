@@ -1,8 +1,8 @@
 """Runs every benchmark: ``python -m benchmarks [--quick] [--runs N] [--loop ...] [--only NAME]``.
 
 The mango-agents comparisons need the ``bench`` extra (``pip install -e ".[bench]"``),
-the Zenoh ones (Zenoh against UDP) the ``zenoh`` extra (``pip install -e ".[zenoh]"``);
-without them they are skipped, and said so.
+the Zenoh ones (cas_async on Zenoh against raw Zenoh) the ``zenoh`` extra
+(``pip install -e ".[zenoh]"``); without them they are skipped, and said so.
 """
 
 import sys

@@ -1,10 +1,10 @@
-"""Handing what another thread receives to the event loop: one queue, one wake-up per batch.
+"""Handing what other threads receive to the event loop: one queue, one wake-up per batch.
 
-Eclipse Zenoh runs subscriber callbacks on its own threads. A callback that calls
-``loop.call_soon_threadsafe`` per sample costs a wake-up each (91k samples/s on the
-project's machine); appending to a deque and waking the loop only when the deque
-was empty lets one pass drain a whole batch (132k/s in one process, about 250k/s
-across two). Every Zenoh user of the package shares this one piece.
+Zenoh (and any library with callbacks on its own threads) delivers on threads that
+must not touch the loop's objects. ``loop.call_soon_threadsafe`` per item costs a
+wake-up of the loop (a write to its self-pipe, a pass of the loop) each time; a queue
+that schedules one pass while none is pending costs one per batch: 132k items/s
+against 91k/s on a 2-core machine (LIMITS.md).
 """
 
 from __future__ import annotations
@@ -21,12 +21,10 @@ E = TypeVar("E")
 
 
 class ThreadInbox(Generic[E]):
-    """What Zenoh's threads hand to the event loop: one queue, one wake-up per batch.
+    """What other threads hand to the event loop, drained on the loop in batches.
 
-    ``drain`` is called on the loop with every entry queued since the last pass,
-    in order. :class:`~cas_async.transport.ZenohTransport` queues datagrams and
-    liveliness tokens in one; the runtime's control channel and the ROS link
-    (:mod:`cas_async.ros`) use one each.
+    ``drain`` is called on the loop with every entry queued since the last pass, in
+    order. :meth:`put` may be called from any thread (the loop's included).
     """
 
     __slots__ = ("_drain", "_loop", "_queue", "_scheduled")
@@ -38,7 +36,7 @@ class ThreadInbox(Generic[E]):
         self._scheduled = False
 
     def put(self, entry: E) -> None:
-        """Called on a Zenoh thread (or the loop's): queues ``entry``, wakes the loop once."""
+        """Queues ``entry`` and wakes the loop, unless a pass is already pending."""
         self._queue.append(entry)
         if not self._scheduled:
             self._scheduled = True
@@ -46,7 +44,9 @@ class ThreadInbox(Generic[E]):
                 self._loop.call_soon_threadsafe(self._run)
 
     def _run(self) -> None:
-        self._scheduled = False  # first: what arrives from now on schedules another pass
+        # First: what arrives from now on schedules another pass. A thread that saw
+        # the flag still set has appended before this line, so its entry is taken below.
+        self._scheduled = False
         queue = self._queue
         entries = [queue.popleft() for _ in range(len(queue))]
         self._drain(entries)

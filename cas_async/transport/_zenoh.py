@@ -16,8 +16,12 @@ one per robot would cost a thousand threads for a thousand robots. The tokens'
 callback runs on Zenoh's network thread instead (``indirect=False``): a token is then
 queued before any datagram its robot sent after declaring it, which would otherwise
 race it through the datagrams' thread and arrive from nobody. Callbacks only
-append to a queue and wake the event loop once per batch (``call_soon_threadsafe``
-when the queue was empty); the loop then hands each datagram to its robot.
+append to a queue and wake the event loop once per batch
+(:class:`~cas_async.transport._thread_inbox.ThreadInbox`); the loop then hands each
+datagram to its robot, reading the pair of robots from its key once per key. Both
+sides declare the keys of the pairs that talk to Zenoh, up to a budget: a publisher
+per pair to send, the key expression to receive (without it, matching the wildcard
+costs Zenoh's network thread 3-4 µs a sample); see :mod:`~cas_async.transport._zenoh_keys`.
 
 Membership: a robot's token appears when it opens its endpoint and disappears when it
 closes, when its process dies (about 2 ms after SIGKILL on loopback) or, for a frozen
@@ -37,7 +41,8 @@ this transport unchanged).
 
 Delivery is reliable: puts use ``CongestionControl.BLOCK``, so a full queue makes
 the sender wait instead of dropping (Zenoh's default, ``DROP``, lost 22% of a burst
-in one process). Datagrams between robots of the same process do not go through Zenoh.
+in one process). Datagrams between robots of the same process do not go through Zenoh:
+they take the same queue as the others, so they arrive on the loop's next pass, in order.
 
 Network defaults are loopback only: the session listens on ``tcp/127.0.0.1`` (a port
 the OS picks) and multicast scouting is off, so nothing leaves this machine unless
@@ -52,141 +57,37 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import ipaddress
-import json
 import re
 import threading
-import warnings
 from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING, Any, Final, Literal, final
+from typing import TYPE_CHECKING, Any, Final, final
 
 from .._codec import DEFAULT_MAX_DATAGRAM
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
-from .._types import Address, RobotId
+from .._types import RobotId
 from ._base import DatagramSink, Endpoint, Transport
 from ._thread_inbox import ThreadInbox
-from ._udp import InsecureBindWarning
+from ._zenoh_config import LOOPBACK_LISTEN, Mode, import_zenoh, loopback_config, warn_if_exposed
+from ._zenoh_endpoint import ZenohEndpoint
+from ._zenoh_keys import (
+    APPEARED,
+    LOCAL,
+    REMOTE,
+    Entry,
+    Publishers,
+    ReceivedKeys,
+    pair_of,
+    subscribe,
+)
 
 if TYPE_CHECKING:
     import zenoh
 
 __all__ = ["ThreadInbox", "ZenohTransport", "import_zenoh", "loopback_config"]
 
-Mode = Literal["peer", "client", "router"]
-
 _NAMESPACE: Final = re.compile(r"[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*")
-_LOOPBACK_LISTEN: Final = ("tcp/127.0.0.1:0",)
 LAST_WORDS: Final = 2.0
 """Seconds (of the loop's clock) a robot's datagrams still speak for it after its token went."""
-_REMOTE: Final = 0
-_LOCAL: Final = 1
-_APPEARED: Final = 2
-_GONE: Final = 3
-_Entry = tuple[int, str, bytes]
-
-
-def import_zenoh() -> Any:
-    """The ``zenoh`` module, or a ``ConfigurationError`` saying how to install it."""
-    try:
-        import zenoh
-    except ImportError as exc:
-        raise ConfigurationError(
-            'the Zenoh transport needs eclipse-zenoh: pip install "cas_async[zenoh]"'
-        ) from exc
-    return zenoh
-
-
-def loopback_config(
-    *, mode: Mode = "peer", listen: Sequence[str] = _LOOPBACK_LISTEN, connect: Sequence[str] = ()
-) -> zenoh.Config:
-    """A Zenoh configuration that stays on this machine unless ``listen``/``connect`` say so.
-
-    Multicast scouting is off (it would announce the session on the LAN) and the
-    session listens on the endpoints given, loopback by default.
-
-    Raises:
-        ConfigurationError: zenoh is not installed, or an endpoint is not valid.
-    """
-    config: zenoh.Config = import_zenoh().Config()
-    try:
-        config.insert_json5("mode", json.dumps(mode))
-        config.insert_json5("listen/endpoints", json.dumps(list(listen)))
-        config.insert_json5("connect/endpoints", json.dumps(list(connect)))
-        config.insert_json5("scouting/multicast/enabled", "false")
-    except Exception as exc:  # zenoh.ZError: the message names the bad value
-        raise ConfigurationError(f"Zenoh configuration: {exc}") from exc
-    return config
-
-
-def _beyond_loopback(endpoint: str) -> bool:
-    """Whether a Zenoh endpoint (``tcp/HOST:PORT``) listens beyond this machine."""
-    _, _, address = endpoint.partition("/")
-    host = address.rsplit(":", 1)[0].strip("[]")
-    try:
-        return not ipaddress.ip_address(host).is_loopback
-    except ValueError:  # a name, or an interface: assume the worst
-        return host != "localhost"
-
-
-@final
-class ZenohEndpoint(Endpoint):
-    """A robot's attachment to a :class:`ZenohTransport`."""
-
-    __slots__ = ("_closed", "_keys", "_network", "_sink", "_token", "max_datagram_size", "robot_id")
-
-    def __init__(
-        self, network: ZenohTransport, robot_id: RobotId, sink: DatagramSink, token: Any
-    ) -> None:
-        self._network = network
-        self._sink = sink
-        self._token = token
-        self._closed = False
-        self._keys: dict[RobotId, tuple[str, Any]] = {}  # receiver -> (its zid, key expr)
-        self.robot_id = robot_id
-        self.max_datagram_size = network.max_datagram_size
-
-    @property
-    def address(self) -> Address:
-        return ("zenoh", self._network.zid, self.robot_id)
-
-    @property
-    def sink(self) -> DatagramSink:
-        """Where this robot's datagrams go."""
-        return self._sink
-
-    def send(self, robot_id: RobotId, data: bytes) -> None:
-        if self._closed:
-            raise RobotStateError(f"robot {self.robot_id}: Zenoh endpoint is closed")
-        network = self._network
-        zid = network.zid_of(robot_id)
-        if zid is None:
-            raise UnknownRobotError(
-                f"robot {self.robot_id}: robot {robot_id} is not on this Zenoh swarm "
-                f"(no liveliness token under {network.namespace!r})"
-            )
-        if zid == network.zid:
-            network.deliver_here(robot_id, self.robot_id, data)
-            return
-        cached = self._keys.get(robot_id)
-        if cached is None or cached[0] != zid:
-            key = network.datagram_key(zid, robot_id, self.robot_id)
-            cached = self._keys[robot_id] = (zid, key)
-        network.put(cached[1], data)
-
-    def peers(self) -> Iterable[RobotId]:
-        return [rid for rid in self._network.members() if rid != self.robot_id]
-
-    def knows(self, robot_id: RobotId) -> bool:
-        return self._network.zid_of(robot_id) is not None
-
-    def follow_membership(self, follow: bool) -> None:
-        self._network.follow(self, follow and not self._closed)
-
-    def close(self) -> None:
-        if self._closed:
-            return
-        self._closed = True
-        self._network.detach(self, self._token)
 
 
 @final
@@ -220,7 +121,7 @@ class ZenohTransport(Transport):
         *,
         namespace: str = "cas_async",
         mode: Mode = "peer",
-        listen: Sequence[str] = _LOOPBACK_LISTEN,
+        listen: Sequence[str] = LOOPBACK_LISTEN,
         connect: Sequence[str] = (),
         config: zenoh.Config | None = None,
         max_datagram_size: int = DEFAULT_MAX_DATAGRAM,
@@ -240,14 +141,14 @@ class ZenohTransport(Transport):
         self.connect = tuple(connect)
         self._config = config
         self.max_datagram_size = max_datagram_size
-        self._zenoh: Any = None
         self._session: Any = None
         self._opening: asyncio.Future[Any] | None = None
         self._kept = False  # opened by start(): stays open until close()
         self._subscribers: list[Any] = []
-        self._inbox: ThreadInbox[_Entry] | None = None
+        self._inbox: ThreadInbox[Entry] | None = None
         self._zid = ""
-        self._put_options: dict[str, Any] = {}
+        self._publishers: Publishers | None = None
+        self._keys: ReceivedKeys | None = None
         self._local: dict[RobotId, ZenohEndpoint] = {}
         self._where: dict[RobotId, str] = {}  # every robot with a live token -> its zid
         self._followers: dict[RobotId, ZenohEndpoint] = {}
@@ -311,11 +212,12 @@ class ZenohTransport(Transport):
                 self._opening = None
 
     async def _open_session(self) -> None:
-        zenoh = self._zenoh = import_zenoh()
+        zenoh = import_zenoh()
         config = self._config
         if config is None:
             config = loopback_config(mode=self.mode, listen=self.listen, connect=self.connect)
-        self._warn_if_exposed()
+        if not self.authenticated and self._config is None:
+            warn_if_exposed(self.listen)
         try:
             session = await asyncio.to_thread(zenoh.open, config)
         except Exception as exc:  # zenoh.ZError
@@ -325,50 +227,13 @@ class ZenohTransport(Transport):
             self._session = session
             self._zid = str(session.zid())
             self._inbox = inbox = ThreadInbox(loop, self._drain)
-            self._put_options = {"congestion_control": zenoh.CongestionControl.BLOCK}
-            ns = self.namespace
+            self._publishers = Publishers(zenoh, session, self.namespace)
+            self._keys = ReceivedKeys(session)
             try:
-                self._subscribers.append(
-                    session.declare_subscriber(
-                        f"{ns}/d/{self._zid}/*/*",  # other shapes are no datagram keys
-                        lambda sample: inbox.put(
-                            (_REMOTE, str(sample.key_expr), sample.payload.to_bytes())
-                        ),
-                    )
-                )
-                self._subscribers.append(
-                    session.liveliness().declare_subscriber(
-                        f"{ns}/alive/*/*",
-                        zenoh.handlers.Callback(
-                            lambda sample: inbox.put(
-                                (
-                                    _APPEARED if sample.kind == zenoh.SampleKind.PUT else _GONE,
-                                    str(sample.key_expr),
-                                    b"",
-                                )
-                            ),
-                            indirect=False,
-                        ),
-                        history=True,
-                    )
-                )
+                subscribe(zenoh, session, self.namespace, self._zid, inbox.put, self._subscribers)
             except BaseException:
                 self._close_session()
                 raise
-
-    def _warn_if_exposed(self) -> None:
-        if self.authenticated or self._config is not None:
-            return
-        exposed = [endpoint for endpoint in self.listen if _beyond_loopback(endpoint)]
-        if exposed:
-            warnings.warn(
-                f"Zenoh session listens on {', '.join(exposed)} without authentication: "
-                "anyone who can reach it can send robots messages. Give the swarm a key "
-                "(CAS_ASYNC_SWARM_KEY=<hex> or a key file, see SwarmKey) and wrap the "
-                "transport in AuthenticatedTransport, or listen on tcp/127.0.0.1",
-                InsecureBindWarning,
-                stacklevel=4,
-            )
 
     def close(self) -> None:
         """Closes every endpoint and the session; idempotent (a later ``open`` starts again)."""
@@ -381,6 +246,7 @@ class ZenohTransport(Transport):
         with self._lock:
             session, self._session = self._session, None
             subscribers, self._subscribers = self._subscribers, []
+            self._publishers = self._keys = None  # closing the session undeclares their keys
             self._where.clear()
             self._zid = ""
         for subscriber in subscribers:
@@ -431,6 +297,8 @@ class ZenohTransport(Transport):
         self.follow(endpoint, False)
         if self._local.get(robot_id) is endpoint:
             del self._local[robot_id]
+            if self._publishers is not None:
+                self._publishers.forget_sender(robot_id)  # _left() forgets the rest
             with contextlib.suppress(Exception):  # the session may be closed already
                 token.undeclare()
             self._left(robot_id, self._zid)
@@ -467,43 +335,58 @@ class ZenohTransport(Transport):
         """Whether robot ``robot_id`` is attached to this transport (this process)."""
         return robot_id in self._local
 
-    def datagram_key(self, zid: str, receiver: RobotId, sender: RobotId) -> Any:
-        """The key a datagram from ``sender`` to ``receiver`` (in session ``zid``) goes under."""
-        return self._zenoh.KeyExpr(f"{self.namespace}/d/{zid}/{receiver}/{sender}")
+    def send_from(self, sender: RobotId, receiver: RobotId, data: bytes) -> None:
+        """Sends one datagram from robot ``sender`` (of this process) to ``receiver``.
 
-    def put(self, key: Any, data: bytes) -> None:
-        """Publishes one datagram to another process (reliably: waits when queues are full)."""
-        session = self._session
-        if session is None:
+        To another process it is published, reliably (when Zenoh's queues are full,
+        this waits instead of dropping); to this one, it arrives on the loop's next pass.
+
+        Raises:
+            UnknownRobotError: no live token speaks for ``receiver``.
+            RobotStateError: the session is closed.
+        """
+        zid = self._where.get(receiver)
+        if zid is None:
+            raise UnknownRobotError(
+                f"robot {sender}: robot {receiver} is not on this Zenoh swarm "
+                f"(no liveliness token under {self.namespace!r})"
+            )
+        publishers, inbox = self._publishers, self._inbox
+        if publishers is None or inbox is None:
             raise RobotStateError("the Zenoh session is closed")
-        session.put(key, data, **self._put_options)
-        self.sent += 1
+        if zid == self._zid:
+            inbox.put((LOCAL, (receiver, sender), data))
+        else:
+            publishers.put_for(zid, receiver, sender)(data)
+            self.sent += 1
 
-    def deliver_here(self, receiver: RobotId, sender: RobotId, data: bytes) -> None:
-        """A datagram between two robots of this process: on the loop's next pass."""
-        inbox = self._inbox
-        if inbox is not None:
-            inbox.put((_LOCAL, f"{receiver}/{sender}", data))
+    def declared_keys(self) -> tuple[int, int]:
+        """Datagram keys the session holds declared now: ``(to send, to receive)``."""
+        if self._publishers is None or self._keys is None:
+            return 0, 0
+        return self._publishers.declared(), self._keys.declared()
 
     # -- what arrives ----------------------------------------------------------------
 
-    def _drain(self, entries: list[_Entry]) -> None:
+    def _drain(self, entries: list[Entry]) -> None:
         local, where = self._local, self._where
-        for kind, key, payload in entries:
-            if kind >= _APPEARED:
-                self._token_event(key, appeared=kind == _APPEARED)
+        pairs = {} if self._keys is None else self._keys.pairs
+        received = 0
+        for kind, what, payload in entries:
+            if kind == REMOTE:
+                pair = pairs.get(what) or self._first_from(what)
+                if pair is None:
+                    continue
+                receiver, sender = pair
+                received += 1
+            elif kind == LOCAL:
+                receiver, sender = what
+            else:
+                self._token_event(what, appeared=kind == APPEARED)
                 continue
-            *_, to, by = key.rsplit("/", 2)
-            try:
-                receiver, sender = int(to), int(by)
-            except ValueError:
-                self._drop("bad_key", key)
-                continue
-            if kind == _REMOTE:
-                self.received += 1
             endpoint = local.get(receiver)
             if endpoint is None:
-                self._drop("no_receiver", key)
+                self._drop("no_receiver", f"robot {receiver}")
                 continue
             known = sender if sender in where or self._lately_here(sender) else None
             try:
@@ -512,6 +395,21 @@ class ZenohTransport(Transport):
                 asyncio.get_running_loop().call_exception_handler(
                     {"message": f"robot {receiver}: sink failed", "exception": exc}
                 )
+        self.received += received
+
+    def _first_from(self, key: str) -> tuple[RobotId, RobotId] | None:
+        """The ``(receiver, sender)`` of a key not read yet, or ``None`` (counted).
+
+        The key is declared to the session when it joins a robot of this process
+        and a live one: what a stranger makes up takes no place.
+        """
+        keys = self._keys
+        pair = pair_of(key) if keys is None else keys.read(key)
+        if pair is None:
+            self._drop("bad_key", key)
+        elif keys is not None and pair[0] in self._local and pair[1] in self._where:
+            keys.declare(key, pair)
+        return pair
 
     def _lately_here(self, robot_id: RobotId) -> bool:
         """Whether ``robot_id`` left less than :data:`LAST_WORDS` seconds ago."""
@@ -543,6 +441,10 @@ class ZenohTransport(Transport):
             return
         self._where[robot_id] = zid
         self._departed.pop(robot_id, None)
+        if self._publishers is not None and self._keys is not None:
+            self._keys.forget(robot_id)  # keys naming it are weighed for declaring again
+            if before is not None:
+                self._publishers.forget_receiver(robot_id)  # it moved to another session
         waiters, self._waiters = self._waiters, []
         for waiter in waiters:
             if not waiter.done():
@@ -556,6 +458,9 @@ class ZenohTransport(Transport):
         if self._where.get(robot_id) != zid:  # gone already, or alive in another session
             return
         del self._where[robot_id]
+        if self._publishers is not None and self._keys is not None:
+            self._publishers.forget_receiver(robot_id)
+            self._keys.forget(robot_id)
         with contextlib.suppress(RuntimeError):  # no loop: the session is closing
             self._departed[robot_id] = asyncio.get_running_loop().time()
         for follower in list(self._followers.values()):
