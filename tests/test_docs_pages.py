@@ -234,6 +234,28 @@ def test_toml_files_parse_and_load_unless_a_command_runs_them(
             load_scenario(tmp_path / block.title)
 
 
+RUNNABLE: Final = re.compile(r"python -m ([\w.]+)")
+EXTRAS: Final = re.compile(r"""pip install (?:-e )?["']?(?:\.|cas_async)\[([\w,-]+)\]""")
+
+
+@pytest.mark.parametrize("page", [*PAGES, ROOT / "README.md"], ids=[*ids(PAGES), "README.md"])
+def test_the_modules_and_extras_a_page_names_exist(page: Path) -> None:
+    """What a page names in prose and ``text`` blocks (which no test runs) is there."""
+    text = page.read_text(encoding="utf-8")
+    ours = {path.name for path in ROOT.iterdir() if path.is_dir()}
+    for module in set(RUNNABLE.findall(text)):
+        if module.split(".")[0] not in ours:
+            continue  # pytest, mypy, cProfile: not this repository's
+        path = ROOT.joinpath(*module.split("."))
+        assert path.with_suffix(".py").is_file() or (path / "__main__.py").is_file(), (
+            f"{page.name}: python -m {module}: no such module to run"
+        )
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    for extras in EXTRAS.findall(text):
+        unknown = set(extras.split(",")) - declared["optional-dependencies"].keys()
+        assert not unknown, f"{page.name}: no extra {sorted(unknown)} in pyproject.toml"
+
+
 def test_the_contract_page_shows_the_protocol_whole(tmp_path: Path) -> None:
     from cas_async.scenario import SimulationApp
 
