@@ -196,16 +196,19 @@ PYTHON_PAGES: Final = [
 
 @pytest.mark.slow
 @pytest.mark.parametrize("page", PYTHON_PAGES, ids=ids(PYTHON_PAGES))
-def test_python_blocks_type_check_strictly(page: Path, tmp_path: Path) -> None:
+def test_python_blocks_type_check_strictly(
+    page: Path, tmp_path: Path, tmp_path_factory: pytest.TempPathFactory
+) -> None:
     pytest.importorskip("mypy", reason="mypy comes with the dev extra (CI installs it)")
     needs(page)
+    cache = tmp_path_factory.getbasetemp() / "mypy-cache"  # cas_async analysed once a session
     files = [
         str(tmp_path / b.title)
         for b in written(page, tmp_path)
         if b.kind == "python" and b.title and not b.excerpt
     ]
     done = subprocess.run(
-        [sys.executable, "-m", "mypy", "--strict", "--cache-dir", str(tmp_path / ".cache"),
+        [sys.executable, "-m", "mypy", "--strict", "--cache-dir", str(cache),
          "--config-file", str(ROOT / "pyproject.toml"), *files],
         cwd=tmp_path, env={**os.environ, "MYPYPATH": str(ROOT)}, capture_output=True,
         text=True, timeout=240, check=False,
