@@ -1,8 +1,8 @@
 """cas_async: an asyncio runtime for collaborative autonomous systems.
 
 Robots are stacks of layers that run concurrently, talk to their neighbouring
-layers inside the robot, and to the same-level layer of other robots. See the
-README for the thesis-to-API map.
+layers inside the robot, and to the same-level layer of other robots. The
+documentation's Concepts page (docs/concepts.md) maps the thesis's names to these.
 
 This package is the face for layer authors and for whoever assembles robots into
 a swarm. Transport authors find more in :mod:`cas_async.transport`, simulation

@@ -1,4 +1,8 @@
-"""The README's code and the examples run as documented (real subprocesses)."""
+"""The README's code and the examples run as documented (real subprocesses).
+
+docs/testing.md's test file is run here too, as a user's project runs it (no conftest,
+no settings); tests/test_docs_pages.py runs every other block of the pages.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +13,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from tests.test_docs_pages import blocks
 
 pytestmark = pytest.mark.slow  # the README's code in subprocesses, and mypy
 
@@ -90,14 +96,21 @@ def test_readme_main_job_runs_as_written(tmp_path: Path) -> None:
     assert {p.name for p in tmp_path.iterdir()} >= {"results.json", "trace.csv"}
 
 
-def test_readme_testing_example_passes_in_a_project_without_conftest(
+def test_the_getting_started_page_shows_the_readme_s_set_up() -> None:
+    """The page shows the two commands as text; the README's are run above."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    match = re.search(r"## Set-up\n.*?```sh\n(.*?)```", readme, re.S)
+    assert match, "README lost its set-up"
+    page = (ROOT / "docs" / "getting-started.md").read_text(encoding="utf-8")
+    assert f"```text\n{match.group(1)}```" in page
+
+
+def test_the_testing_page_s_example_passes_in_a_project_without_conftest(
     pytester: pytest.Pytester,
 ) -> None:
     """What a user's project that only installed cas_async gets: no conftest, no settings."""
-    readme = (ROOT / "README.md").read_text()
-    match = re.search(r"## Testing your layers\n.*?```python\n(.*?)```", readme, re.S)
-    assert match, "README lost its testing example"
-    pytester.makepyfile(test_readme=match.group(1))
+    (block,) = [b for b in blocks(ROOT / "docs" / "testing.md") if b.title == "test_echo.py"]
+    pytester.makepyfile(test_readme=block.text)
     result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-v", "--durations=0")
     result.assert_outcomes(passed=2)
     result.stdout.fnmatch_lines(["*test_an_hour_of_beacons PASSED*"])

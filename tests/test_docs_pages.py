@@ -1,11 +1,15 @@
 """The pages under docs/ as a reader meets them: every code block runs or type-checks.
 
-A page's fenced blocks are of four kinds:
+A page's fenced blocks (in a list item too) are of four kinds:
 
 * ``python title="name.py"`` and ``toml title="name.toml"``: files, written under
-  their titles into a fresh folder (one per page, where ``apps`` and ``examples``
-  of this repository are at hand); every Python file of a page is type-checked
-  with ``mypy --strict``;
+  their titles into a fresh folder (one per page, where ``apps``, ``examples`` and
+  ``benchmarks`` of this repository are at hand); every Python file of a page is
+  type-checked with ``mypy --strict``; a TOML file that no command of its page
+  names must load as a scenario;
+* ``python title="path/in/the/repository.py"`` (a title with a ``/``): an excerpt of
+  that file of this repository, found in it verbatim (its lines in order; a line
+  ``...`` leaves lines out), so the file's own checks cover it;
 * ``console``: commands (``$ ...``) run in that folder by bash, in order, each
   followed by what it prints (stdout and stderr together): a line ``...`` stands
   for any lines, and ``...`` within a line for any text;
@@ -21,6 +25,8 @@ import os
 import re
 import subprocess
 import sys
+import textwrap
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
@@ -29,10 +35,17 @@ import pytest
 
 ROOT: Final = Path(__file__).resolve().parents[1]
 DOCS: Final = ROOT / "docs"
-PAGES: Final = sorted(DOCS.glob("*.md"))
-FENCE: Final = re.compile(r"^```(\w*)([^\n]*)\n(.*?)^```[ \t]*$", re.S | re.M)
+PAGES: Final = sorted(DOCS.rglob("*.md"))
+FENCE: Final = re.compile(r"^([ \t]*)```(\w*)([^\n]*)\n(.*?)^\1```[ \t]*$", re.S | re.M)
 TITLE: Final = re.compile(r'title="([^"]+)"')
+LINKED: Final = ("apps", "examples", "benchmarks")
 LIMIT: Final = 120
+NEEDS: Final = {
+    "live.md": ("websockets",),
+    "rl.md": ("pettingzoo", "gymnasium"),
+    "ros.md": ("zenoh", "rosbags"),
+}
+"""What a page's code imports beyond the core: its checks skip where it is missing."""
 
 
 @dataclass(frozen=True)
@@ -42,45 +55,87 @@ class Block:
     text: str
     line: int
 
+    @property
+    def excerpt(self) -> bool:
+        """Whether the block is an excerpt of a file of this repository (not a page's file)."""
+        return self.title is not None and "/" in self.title
+
 
 def blocks(page: Path) -> list[Block]:
     text = page.read_text(encoding="utf-8")
     found = []
     for match in FENCE.finditer(text):
-        title = TITLE.search(match.group(2))
+        indent, kind, options, body = match.groups()
+        title = TITLE.search(options)
         line = text.count("\n", 0, match.start()) + 1
-        found.append(Block(match.group(1), title and title.group(1), match.group(3), line))
+        body = textwrap.dedent(body) if indent else body
+        found.append(Block(kind, title and title.group(1), body, line))
     return found
+
+
+def page_name(page: Path) -> str:
+    return page.relative_to(DOCS).as_posix()
+
+
+def needs(page: Path) -> None:
+    for module in NEEDS.get(page_name(page), ()):
+        pytest.importorskip(module, reason=f"{page_name(page)} needs {module} (in the dev extra)")
 
 
 def written(page: Path, folder: Path) -> list[Block]:
     """The page's files, written into ``folder`` (with the repository's apps and examples)."""
-    for name in ("apps", "examples"):
-        (folder / name).symlink_to(ROOT / name)
+    for linked in LINKED:
+        (folder / linked).symlink_to(ROOT / linked)
     found = blocks(page)
     for block in found:
-        if block.title is not None:
+        if block.title is not None and not block.excerpt:
             (folder / block.title).write_text(block.text, encoding="utf-8")
     return found
 
 
 def ids(pages: list[Path]) -> list[str]:
-    return [page.name for page in pages]
+    return [page_name(page) for page in pages]
 
 
 def test_there_are_pages() -> None:
-    assert {"app-contract.md", "embedding.md", "errors.md"} <= {page.name for page in PAGES}
+    assert {"app-contract.md", "embedding.md", "errors.md", "tutorial.md"} <= set(ids(PAGES))
 
 
 @pytest.mark.parametrize("page", PAGES, ids=ids(PAGES))
 def test_every_block_is_of_a_kind_a_test_runs(page: Path) -> None:
     for block in blocks(page):
-        where = f"{page.name}:{block.line}"
+        where = f"{page_name(page)}:{block.line}"
         assert block.kind in {"python", "toml", "console", "text"}, where
         if block.kind in {"python", "toml"}:
             assert block.title is not None, f'{where}: a file block needs title="name"'
         if block.kind == "console":
             assert block.text.startswith("$ "), f"{where}: a console block starts with $"
+
+
+def excerpt_of(block: str, text: str) -> bool:
+    """Whether ``block`` is in ``text``: its parts between ``...`` lines, in order."""
+    at = 0
+    for part in re.split(r"^[ \t]*\.\.\.[ \t]*$", block, flags=re.M):
+        found = text.find(part.strip(), at)
+        if found < 0:
+            return False
+        at = found + len(part.strip())
+    return True
+
+
+EXCERPTS: Final = [(page, b) for page in PAGES for b in blocks(page) if b.excerpt]
+
+
+@pytest.mark.parametrize(
+    ("page", "block"), EXCERPTS, ids=[f"{page_name(p)}:{b.line}" for p, b in EXCERPTS]
+)
+def test_an_excerpt_is_the_file_s_own_code(page: Path, block: Block) -> None:
+    assert block.title is not None
+    source = ROOT / block.title
+    assert source.is_file(), f"{page_name(page)}:{block.line}: no file {block.title}"
+    assert excerpt_of(block.text, source.read_text(encoding="utf-8")), (
+        f"{page_name(page)}:{block.line}: not found verbatim in {block.title}"
+    )
 
 
 def expected_output(lines: list[str]) -> re.Pattern[str]:
@@ -110,6 +165,7 @@ CONSOLE_PAGES: Final = [page for page in PAGES if any(b.kind == "console" for b 
 @pytest.mark.slow
 @pytest.mark.parametrize("page", CONSOLE_PAGES, ids=ids(CONSOLE_PAGES))
 def test_console_blocks_print_what_the_page_shows(page: Path, tmp_path: Path) -> None:
+    needs(page)
     env = {
         **os.environ,
         "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
@@ -128,28 +184,79 @@ def test_console_blocks_print_what_the_page_shows(page: Path, tmp_path: Path) ->
                 check=False,
             )  # fmt: skip
             assert expected_output(lines).fullmatch(done.stdout), (
-                f"{page.name}:{block.line}: $ {command}\nprinted:\n{done.stdout}"
+                f"{page_name(page)}:{block.line}: $ {command}\nprinted:\n{done.stdout}"
                 f"\nexpected:\n" + "\n".join(lines)
             )
 
 
-PYTHON_PAGES: Final = [page for page in PAGES if any(b.kind == "python" for b in blocks(page))]
+PYTHON_PAGES: Final = [
+    page for page in PAGES if any(b.kind == "python" and not b.excerpt for b in blocks(page))
+]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("page", PYTHON_PAGES, ids=ids(PYTHON_PAGES))
-def test_python_blocks_type_check_strictly(page: Path, tmp_path: Path) -> None:
+def test_python_blocks_type_check_strictly(
+    page: Path, tmp_path: Path, tmp_path_factory: pytest.TempPathFactory
+) -> None:
     pytest.importorskip("mypy", reason="mypy comes with the dev extra (CI installs it)")
+    needs(page)
+    cache = tmp_path_factory.getbasetemp() / "mypy-cache"  # cas_async analysed once a session
     files = [
-        str(tmp_path / b.title) for b in written(page, tmp_path) if b.kind == "python" and b.title
+        str(tmp_path / b.title)
+        for b in written(page, tmp_path)
+        if b.kind == "python" and b.title and not b.excerpt
     ]
     done = subprocess.run(
-        [sys.executable, "-m", "mypy", "--strict", "--cache-dir", str(tmp_path / ".cache"),
+        [sys.executable, "-m", "mypy", "--strict", "--cache-dir", str(cache),
          "--config-file", str(ROOT / "pyproject.toml"), *files],
         cwd=tmp_path, env={**os.environ, "MYPYPATH": str(ROOT)}, capture_output=True,
         text=True, timeout=240, check=False,
     )  # fmt: skip
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+TOML_PAGES: Final = [page for page in PAGES if any(b.kind == "toml" for b in blocks(page))]
+
+
+@pytest.mark.parametrize("page", TOML_PAGES, ids=ids(TOML_PAGES))
+def test_toml_files_parse_and_load_unless_a_command_runs_them(
+    page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from cas_async.scenario import load_scenario
+
+    found = written(page, tmp_path)
+    said = "\n".join(b.text for b in found if b.kind == "console")
+    monkeypatch.chdir(tmp_path)  # a scenario's app is imported as the CLI would, from here
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for block in found:
+        if block.kind != "toml" or block.excerpt or block.title is None:
+            continue
+        tomllib.loads(block.text)
+        if block.title not in said:
+            load_scenario(tmp_path / block.title)
+
+
+RUNNABLE: Final = re.compile(r"python -m ([\w.]+)")
+EXTRAS: Final = re.compile(r"""pip install (?:-e )?["']?(?:\.|cas_async)\[([\w,-]+)\]""")
+
+
+@pytest.mark.parametrize("page", [*PAGES, ROOT / "README.md"], ids=[*ids(PAGES), "README.md"])
+def test_the_modules_and_extras_a_page_names_exist(page: Path) -> None:
+    """What a page names in prose and ``text`` blocks (which no test runs) is there."""
+    text = page.read_text(encoding="utf-8")
+    ours = {path.name for path in ROOT.iterdir() if path.is_dir()}
+    for module in set(RUNNABLE.findall(text)):
+        if module.split(".")[0] not in ours:
+            continue  # pytest, mypy, cProfile: not this repository's
+        path = ROOT.joinpath(*module.split("."))
+        assert path.with_suffix(".py").is_file() or (path / "__main__.py").is_file(), (
+            f"{page.name}: python -m {module}: no such module to run"
+        )
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    for extras in EXTRAS.findall(text):
+        unknown = set(extras.split(",")) - declared["optional-dependencies"].keys()
+        assert not unknown, f"{page.name}: no extra {sorted(unknown)} in pyproject.toml"
 
 
 def test_the_contract_page_shows_the_protocol_whole(tmp_path: Path) -> None:

@@ -1,8 +1,8 @@
-"""The gathering tutorial app (``examples/gathering``), and the README section that teaches it.
+"""The gathering tutorial app (``examples/gathering``), and the page that teaches it.
 
 Each layer alone (``LayerHarness``), the swarm (``cas_robots`` on virtual time), the
 scenario end to end over seeds (``run_scenario_file``), the command line once, and
-the README's "Your own application": every excerpt it shows is in these files.
+docs/tutorial.md: every excerpt it shows is in these files.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from examples.gathering.app import GatheringConfig, app
 from examples.gathering.drive import Drive
 from examples.gathering.messages import MESSAGES, Arrived, DriveTo, Position
 from examples.gathering.plan import Plan, Point
+from tests.test_docs_pages import excerpt_of
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "gathering"
@@ -214,8 +215,9 @@ def test_the_command_line_runs_the_scenario(tmp_path: Path) -> None:
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert re.search(r"^robots gathered +5 of 5$", done.stdout, re.M), done.stdout
-    for line in _tutorial_blocks("text")[0].splitlines():  # the output the README shows
-        if "wall" not in line:
+    (shown,) = _tutorial_blocks("console")  # the output the page shows
+    for line in shown.splitlines()[1:]:
+        if "..." not in line and not line.startswith("wrote "):  # written to tmp_path here
             assert line in done.stdout
     results = json.loads((tmp_path / "results.json").read_text())
     assert (results["kind"], results["status"], results["delivered"]) == (
@@ -225,14 +227,12 @@ def test_the_command_line_runs_the_scenario(tmp_path: Path) -> None:
     )
 
 
-# -- the README's tutorial ----------------------------------------------------------------
+# -- the tutorial's page -----------------------------------------------------------------
 
 
 def _tutorial_blocks(language: str) -> list[str]:
-    readme = (ROOT / "README.md").read_text()
-    section = re.search(r"^## Your own application\n(.*?)^## ", readme, re.S | re.M)
-    assert section, "README lost its section 'Your own application'"
-    return re.findall(rf"^```{language}\n(.*?)^```", section.group(1), re.S | re.M)
+    page = (ROOT / "docs" / "tutorial.md").read_text(encoding="utf-8")
+    return re.findall(rf"^```{language}\b[^\n]*\n(.*?)^```", page, re.S | re.M)
 
 
 @pytest.mark.parametrize("language", ["python", "toml"])
@@ -242,15 +242,5 @@ def test_every_excerpt_of_the_tutorial_is_in_the_example_or_its_tests(language: 
     sources += [Path(__file__).read_text(), SCENARIO.read_text()]
     blocks = _tutorial_blocks(language)
     assert blocks, f"the tutorial shows no {language} block"
-    stale = [block for block in blocks if not any(_excerpt_of(block, text) for text in sources)]
-    assert stale == [], "README excerpts not found verbatim in examples/gathering or this file"
-
-
-def _excerpt_of(block: str, text: str) -> bool:
-    at = 0
-    for part in re.split(r"^[ \t]*\.\.\.[ \t]*$", block, flags=re.M):
-        found = text.find(part.strip(), at)
-        if found < 0:
-            return False
-        at = found + len(part.strip())
-    return True
+    stale = [block for block in blocks if not any(excerpt_of(block, text) for text in sources)]
+    assert stale == [], "excerpts not found verbatim in examples/gathering or this file"
