@@ -84,7 +84,12 @@ def test_the_mango_benchmarks_are_listed_when_mango_imports() -> None:
 
 
 @pytest.mark.parametrize(
-    "name", ["mango_one_process", "mango_one_process_bytes", "mango_processes"]
+    "name",
+    [
+        "mango_one_process",
+        "mango_one_process_bytes",
+        pytest.param("mango_processes", marks=pytest.mark.slow),
+    ],
 )
 def test_the_mango_benchmarks_run(name: str) -> None:
     pytest.importorskip("mango")
@@ -110,7 +115,13 @@ def test_the_zenoh_benchmarks_are_listed_when_zenoh_imports() -> None:
         assert "pip install" in bench_zenoh.skip_message()
 
 
-@pytest.mark.parametrize("name", list(ZENOH_UNITS))
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(name, marks=[pytest.mark.slow] if "processes" in name else [])
+        for name in ZENOH_UNITS
+    ],
+)
 def test_the_zenoh_benchmarks_run(name: str) -> None:
     pytest.importorskip("zenoh")
     (bench,) = [b for b in bench_zenoh.BENCHES if b.name == name]

@@ -66,6 +66,7 @@ def test_every_kind_of_field_survives_the_codec(msg: KitchenSink) -> None:
     assert_roundtrip(msg, messages=SINK_MESSAGES)
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(st.data())
 def test_the_fire_brigade_messages_survive_the_codec(data: st.DataObject) -> None:
@@ -74,6 +75,7 @@ def test_the_fire_brigade_messages_survive_the_codec(data: st.DataObject) -> Non
     assert_roundtrip(msg, layers=5, messages=MESSAGES)
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(strategy_for(KitchenSink))
 def test_drawn_values_keep_their_bounds(msg: KitchenSink) -> None:

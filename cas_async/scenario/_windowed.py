@@ -121,7 +121,9 @@ class WindowedRun:
                 "cas_async.run(..., virtual=True)"
             )
         self._loop = loop
-        self._windows = Windows(loop, loop.time() + self.latency, self._close, self.ended.set)
+        self._windows = Windows(
+            loop, loop.time() + self.latency, self._close, self.ended.set, quick=self._quick
+        )
         loop.run_windows(self._windows)
 
     def observe_now(self) -> None:
@@ -139,6 +141,23 @@ class WindowedRun:
             self._windows.stop()
         if self._loop is not None:
             self._loop.run_windows(None)
+
+    def _quick(self, end: float, next_event: float) -> float | None:
+        """Closes the window at once if it has no sample and does not end the run."""
+        observer, clock = self._observer, self._clock
+        end_t = clock.at_loop_time(end)
+        following = clock.at_loop_time(next_event)
+        if (
+            self._last
+            or observer.next_sample < end_t
+            or following >= self._max_time
+            or math.isinf(following)
+        ):
+            return None
+        observer.apply([self._recorder.take()], until=end_t)
+        if self._done():  # complete in this window: the next one is the last
+            self._last = True
+        return next_event + clock.loop_seconds(self.latency)
 
     async def _close(self, end: float, next_event: float) -> float | None:
         """Observes the window that ends at ``end``; the end of the next one, if any.

@@ -86,9 +86,9 @@ def reports(monkeypatch: pytest.MonkeyPatch) -> Reports:
     return seen
 
 
-@pytest.mark.parametrize("loss", [0.1, 0.3])
+@pytest.mark.parametrize("loss", [pytest.param(0.1, marks=pytest.mark.slow), 0.3])
 @pytest.mark.parametrize("scenario", SHIPPED, ids=[path.stem for path in SHIPPED])
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_every_scenario_delivers_every_bucket_despite_loss(
     scenario: Path, loss: float, seed: int, reports: Reports
 ) -> None:

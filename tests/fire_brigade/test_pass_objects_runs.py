@@ -8,7 +8,7 @@ from cas_async.scenario import RunStatus
 from tests.fire_brigade.helpers import SCENARIOS, run_checked
 
 
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_passing_objects_gives_the_same_run_as_bytes(seed: int) -> None:
     scenario = SCENARIOS / "thesis_5_8_2.toml"
     as_bytes, _, _ = run_checked(scenario, [f"run.seed={seed}"])

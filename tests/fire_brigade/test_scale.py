@@ -125,6 +125,7 @@ def test_without_exchange_snapshots_the_trace_has_only_samples() -> None:
     assert len(trace.times) > 0
 
 
+@pytest.mark.slow
 def test_the_cli_says_the_exchange_figure_is_empty_because_snapshots_were_off(
     tmp_path: Path, plot_notes: list[str]
 ) -> None:
@@ -198,7 +199,9 @@ def test_a_swarm_without_a_sink_fails_the_nearby_search_by_name() -> None:
         play(main)
 
 
-@pytest.mark.parametrize("strategy", ["time", "random", "solo"])
+@pytest.mark.parametrize(
+    "strategy", ["time", pytest.param("random", marks=pytest.mark.slow), "solo"]
+)
 def test_three_thesis_cells_looking_nearby_deliver_with_fewer_questions(strategy: str) -> None:
     # Three copies of the §5.8.2 world side by side: every Generator's nearest Sink is
     # in its own cell, 9 away; asking only within 10 leaves the far cell out.

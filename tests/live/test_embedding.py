@@ -84,6 +84,7 @@ def _run(
     return cas_async.run(main(), virtual=True)
 
 
+@pytest.mark.slow  # two runs of 250 robots
 def test_a_viewer_that_never_reads_changes_nothing_the_run_measures() -> None:
     scenario = FIRE / "scale_250.toml"
     often = ("run.trace_interval=0.05",)  # some 600 frames of 4.7 kB

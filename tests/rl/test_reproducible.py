@@ -72,7 +72,14 @@ def test_an_episode_does_not_depend_on_the_episodes_before_it(make: Callable[...
     assert record(env, [11], 40, policy_seed=1) == alone
 
 
-@pytest.mark.parametrize(("seed", "dt"), [(1, 0.5), (2, 0.1), (3, 3.7)])
+@pytest.mark.parametrize(
+    ("seed", "dt"),
+    [
+        (1, 0.5),
+        pytest.param(2, 0.1, marks=pytest.mark.slow),
+        pytest.param(3, 3.7, marks=pytest.mark.slow),
+    ],
+)
 def test_holding_the_first_ranked_partner_is_the_time_strategy_to_the_last_bit(
     seed: int, dt: float, make: Callable[..., Any]
 ) -> None:

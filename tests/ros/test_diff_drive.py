@@ -95,6 +95,7 @@ async def test_it_drives_to_a_goal_in_the_layers_frame_and_turns(
     await until(lambda: robot.velocity == (0.0, 0.0), "the robot is told to stop at the end")
 
 
+@pytest.mark.slow
 async def test_a_robot_that_wants_twist_stamped_is_refused_saying_what_to_pass(
     fake_robot: Callable[..., Awaitable[Started]],
     link_to: Callable[[FakeRobot], Awaitable[RosLink]],

@@ -161,12 +161,14 @@ async def test_a_scenario_that_cannot_run_raises_where_it_is_awaited(tmp_path: P
 
 
 async def test_a_run_runs_once() -> None:
-    run = BackgroundRun(load_scenario(GATHERING))
+    endless = ["run.virtual=true", 'run.transport="memory"', "mission.buckets=100000"]
+    run = BackgroundRun(load_scenario(FIRE_BRIGADE, endless))  # ends when stopped
     run.start()
     with pytest.raises(RobotStateError, match="started already"):
         run.start()
     with pytest.raises(RobotStateError, match="has not ended"):
         _ = run.trace
+    run.stop()
     async with asyncio.timeout(LIMIT):
         await run
     threads = [t for t in threading.enumerate() if t.name.startswith("cas_async run")]

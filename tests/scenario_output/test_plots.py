@@ -175,6 +175,7 @@ def figure_texts(monkeypatch: pytest.MonkeyPatch) -> dict[str, list[str]]:
     return texts
 
 
+@pytest.mark.slow
 def test_robots_standing_together_share_one_label(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -205,6 +206,7 @@ def test_id_labels_part_only_robots_whose_labels_would_overlap() -> None:
     assert id_labels(list(range(1, 9)), crowd, world) == [("1,2,3 +5", (0.0, 0.0))]
 
 
+@pytest.mark.slow
 def test_no_groups_no_other_legend(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     texts = figure_texts(monkeypatch)
     write_plots(walking_trace(samples=4, exchanges=6), {}, (60.0, 50.0), tmp_path, title="t")
