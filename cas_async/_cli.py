@@ -27,7 +27,9 @@ out of simulated time (``sweep``: some run did); 2 the command line, the scenari
 or the set-up is wrong: anything refused before the robots run, on one line
 ``error: ...`` (the app's build refusing, ``--processes`` without the zenoh extra
 or with an objective that cannot run across processes, a start refused by a
-transport or a clock); 130 interrupted.
+transport or a clock; ``results.json`` says so too); 130 interrupted. A run across
+processes whose workers do not come, or go during the start, fails on one line
+too, with exit code 1 and ``results.json``.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ from .scenario import (
     sweep_table,
 )
 from .scenario._atomic_files import remove_partial_files
+from .scenario._processes import WorkerLost
 from .scenario._report import summary_table, write_results
 from .scenario._sweep_plots import write_box_plots
 from .scenario._sweep_report import write_sweep_files
@@ -327,6 +330,9 @@ def _command_run(
         return EXIT_INTERRUPTED
     except ConfigurationError as exc:  # the app's build, --processes, the layers built
         print(f"error: {exc}", file=stderr)
+        if out.is_dir():
+            with interrupts.deferred():
+                write_results(_refused(scenario, exc, time.perf_counter() - started), out)
         return EXIT_USAGE
     try:
         live = views.open_live(args, scenario, stdout)  # bound now: the robots start on the loop
@@ -343,7 +349,7 @@ def _command_run(
             run(session.drive(stop), virtual=scenario.run.virtual)
         if session.refused is not None:
             print(f"error: {session.refused}", file=stderr)
-            return EXIT_USAGE
+            return EXIT_FAILED if isinstance(session.refused, WorkerLost) else EXIT_USAGE
         return session.finish()
 
 
@@ -369,6 +375,9 @@ def _command_worker(args: argparse.Namespace, stderr: TextIO) -> int:
     except ConfigurationError as exc:
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE
+    except WorkerLost as exc:  # no world answered, or it went away
+        print(f"error: {exc}", file=stderr)
+        return EXIT_FAILED
 
 
 def _command_sweep(
@@ -445,8 +454,8 @@ class _Session:
         self._stop: asyncio.Event | None = None
         self._written: list[Path] = []
         self._failure_shown = False  # a traceback printed with the summary
-        self.refused: ConfigurationError | None = None
-        """Why the robots could not start, if a configuration error stopped them."""
+        self.refused: ConfigurationError | WorkerLost | None = None
+        """Why the robots could not start: a configuration error, or a lost process."""
         self.fail_on_drops: FailOnDrops | None = None
         """The drops that fail the run (``--fail-on-drops``), if any do."""
         self.live: views.LiveOptions | None = None
@@ -477,8 +486,10 @@ class _Session:
             )
             try:
                 await stack.enter_async_context(self._run)
-            except ConfigurationError as exc:  # refused while starting: nothing ran
+            except (ConfigurationError, WorkerLost) as exc:  # refused while starting
                 self.refused = exc
+                with self._interrupts.deferred():
+                    write_results(self._run.failed_to_start(exc), self._out)
                 return
             self._ended(await self._run.until_done())
             if self._interrupts.interrupted and self._owns_process:
@@ -545,6 +556,13 @@ class _Session:
     def _exit_now(self) -> NoReturn:
         """Ends the process with 130 once the output is flushed: the OS reclaims the robots."""
         _exit_process((self._stdout, self._stderr), self._say_written)
+
+
+def _refused(scenario: Scenario, error: ConfigurationError, wall_time: float) -> RunResult:
+    """A run refused while its robots were built: nothing ran, the reason in one line."""
+    result = _not_built(scenario, wall_time)
+    result.status, result.error = RunStatus.FAILED, str(error)
+    return result
 
 
 def _not_built(scenario: Scenario, wall_time: float) -> RunResult:

@@ -9,6 +9,7 @@ runs them.
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -33,6 +34,13 @@ def refused_in_one_line(finished: Finished) -> str:
     return lines[0]
 
 
+def assert_failed_with(out: Path, line: str) -> None:
+    """The run's results.json says it failed, with the error the line said."""
+    results = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert results["status"] == "failed"
+    assert line == f"error: {results['error']}"
+
+
 def scenario(tmp_path: Path, app: str, run: str = "") -> Path:
     path = tmp_path / "refused.toml"
     path.write_text(f'app = "{app}"\n[run]\n{run}\n[world]\nwidth = 10\nheight = 10\n')
@@ -46,10 +54,10 @@ def test_an_objective_that_cannot_run_across_processes_says_what_distributable_m
         run_cli("run", GATHERING, "--processes", "2", "--out", tmp_path / "out")
     )
     assert "--processes: Gathering's objective Gathered is not distributable" in line
-    assert "the world process holds the Environment" in line
+    assert "the world process observes a mirror of their Environment" in line
     assert "set distributable = True on Gathered" in line
     assert "Otherwise run without --processes" in line
-    assert not (tmp_path / "out" / "results.json").exists()
+    assert_failed_with(tmp_path / "out", line)
 
 
 def test_processes_without_the_zenoh_extra_say_how_to_install_it(tmp_path: Path) -> None:
@@ -95,7 +103,7 @@ def test_a_start_refused_by_the_clock_is_a_configuration_error(tmp_path: Path) -
     )
     line = refused_in_one_line(run_cli("run", path, "--out", tmp_path / "out"))
     assert "VirtualClock needs the virtual-time event loop" in line
-    assert not (tmp_path / "out" / "results.json").exists()
+    assert_failed_with(tmp_path / "out", line)
 
 
 def test_virtual_time_over_zenoh_without_processes_is_refused(tmp_path: Path) -> None:

@@ -64,7 +64,11 @@ class Capacity:
 
 
 def capacity_problems(
-    counts: Mapping[str, int], transport: str, capacity: Capacity, samples: float = 0
+    counts: Mapping[str, int],
+    transport: str,
+    capacity: Capacity,
+    samples: float = 0,
+    processes: int = 1,
 ) -> list[tuple[str, str]]:
     """The problems, as ``(key, message)``, of running ``counts`` robots on ``capacity``.
 
@@ -74,6 +78,8 @@ def capacity_problems(
         capacity: what the machine can give.
         samples: trace samples a run reaching ``run.max_time`` takes (``max_time /
             trace_interval``); each holds every robot's position.
+        processes: processes on this machine that each build every robot (a run
+            across processes: the world and its workers).
 
     Returns:
         At most one problem per limit, named after the key with the most robots
@@ -87,7 +93,7 @@ def capacity_problems(
     if len(counts) > 1:
         many += f" ({_number(total)} in all)"
     problems = []
-    robots = total * ROBOT_MEMORY
+    robots = total * ROBOT_MEMORY * processes
     trace = total * samples * SAMPLE_MEMORY
     if capacity.memory is not None and robots + trace > capacity.memory:
         have = f"this machine has {_bytes(capacity.memory)} available"
@@ -101,12 +107,19 @@ def capacity_problems(
                 )
             )
         else:
-            most = capacity.memory // ROBOT_MEMORY
+            most = capacity.memory // (ROBOT_MEMORY * processes)
+            where = (
+                f" in each of {processes} processes (the world and its workers each build "
+                "every robot)"
+                if processes > 1
+                else ""
+            )
             problems.append(
                 (
                     key,
                     f"{many} need about {_bytes(robots)} at about {_bytes(ROBOT_MEMORY)} "
-                    f"each; {have}: at most about {most:,} robots",
+                    f"each{where}; {have}: at most about {most:,} robots"
+                    + (", or fewer processes" if processes > 1 else ""),
                 )
             )
     if transport == "udp":

@@ -18,8 +18,11 @@ anyone (see the README's security section): :class:`Channel` checks what it can
 
 The protocol (world ``W``, workers ``0..n-1``):
 
-* lobby: a worker sends :class:`Hello` until ``W`` answers :class:`Welcome` (the
-  run's namespace, the scenario, the worker's share of the robots) or :class:`Full`;
+* lobby: a worker sends :class:`Hello` (under ``hello/<nonce>``) until ``W``
+  answers :class:`Welcome` (the run's namespace, the scenario, the worker's share
+  of the robots) or :class:`Full` under ``welcome/<nonce>``; a hello whose tag
+  does not check gets :class:`Refused`, which the worker cannot check either: the
+  keys differ, and it says so at once;
 * ``W`` sends :class:`Go` when every worker is :class:`Ready`;
 * virtual time, window ``k``: each worker runs every event before the window's
   end, then publishes its :class:`Window` (what its robots did, what they sent to
@@ -68,11 +71,13 @@ __all__ = [
     "Grant",
     "Hello",
     "Ready",
+    "Refused",
     "Remote",
     "Stop",
     "Welcome",
     "Window",
     "next_instant",
+    "token_lives",
 ]
 
 WORLD: Final = -1
@@ -107,12 +112,14 @@ class Remote(msgspec.Struct, frozen=True, array_like=True):
 
 
 class Counts(msgspec.Struct, frozen=True, array_like=True):
-    """A worker's counts so far: messages by kind and class, drops, refusals."""
+    """A worker's counts so far: messages by kind and class, drops, refusals, faults."""
 
     internal: dict[str, int] = msgspec.field(default_factory=dict)
     external: dict[str, int] = msgspec.field(default_factory=dict)
     dropped: dict[str, int] = msgspec.field(default_factory=dict)
     refused: dict[str, int] = msgspec.field(default_factory=dict)
+    faults: dict[str, int] | None = None
+    """The ``[faults]`` wire's counts (:attr:`FaultyTransport.stats`), if it has faults."""
 
 
 class Hello(msgspec.Struct, frozen=True, tag="hello"):
@@ -173,6 +180,16 @@ class Beat(msgspec.Struct, frozen=True, tag="beat"):
     """The world lives (every :data:`BEAT_EVERY` wall seconds, whatever else it says)."""
 
 
+class Refused(msgspec.Struct, frozen=True, tag="refused"):
+    """The world's answer to a hello whose tag does not check against its key.
+
+    Signed with the world's key, which the worker's does not check either: what
+    the worker learns is that the keys differ (see :func:`~._worker.join`).
+    """
+
+    reason: str
+
+
 class Stop(msgspec.Struct, frozen=True, tag="stop"):
     """The run is over: stop the robots, say :class:`Bye`."""
 
@@ -194,7 +211,9 @@ class Bye(msgspec.Struct, frozen=True, tag="bye"):
     waited: float = 0.0
 
 
-Control = Union[Hello, Welcome, Full, Ready, Go, Window, Grant, Beat, Stop, Failed, Bye]  # noqa: UP007
+Control = Union[  # noqa: UP007
+    Hello, Welcome, Full, Refused, Ready, Go, Window, Grant, Beat, Stop, Failed, Bye
+]
 """Every message of the control plane."""
 
 
@@ -221,6 +240,8 @@ class Channel:
         handle: called on the event loop with ``(suffix, sender, message)`` for each
             message that passed every check; what it raises is counted as
             ``control.unusable`` and the batch goes on.
+        refused: called on the event loop with ``(suffix, reason)`` for each message
+            refused (after it is counted).
     """
 
     def __init__(
@@ -230,6 +251,7 @@ class Channel:
         sender: int,
         key: SwarmKey | None,
         handle: Callable[[str, int, Control], None],
+        refused: Callable[[str, str], None] = lambda suffix, reason: None,
     ) -> None:
         import zenoh
 
@@ -239,6 +261,7 @@ class Channel:
         self._sender = sender
         self._secret = None if key is None else key.secret
         self._handle = handle
+        self._on_refused = refused
         self._count = 0
         self._seen: dict[int, int] = {}  # sender -> its highest count taken
         self._inbox: ThreadInbox[tuple[str, bytes]] = ThreadInbox(
@@ -275,9 +298,10 @@ class Channel:
             with contextlib.suppress(Exception):
                 subscriber.undeclare()
 
-    def _refuse(self, reason: str) -> None:
+    def _refuse(self, key_expr: str, reason: str) -> None:
         key = f"control.{reason}"
         self.refused[key] = self.refused.get(key, 0) + 1
+        self._on_refused(key_expr[len(self._prefix) :], reason)
 
     def _drain(self, entries: list[tuple[str, bytes]]) -> None:
         for key, payload in entries:
@@ -286,26 +310,26 @@ class Channel:
                 if len(payload) < _TAG or not hmac.compare_digest(
                     tag, _tag(self._secret, key, body)
                 ):
-                    self._refuse("unsigned")
+                    self._refuse(key, "unsigned")
                     continue
                 payload = body
             try:
                 envelope = _ENVELOPE.decode(payload)
                 message = _CONTROL.decode(envelope.body)
             except (msgspec.DecodeError, RecursionError):
-                self._refuse("malformed")
+                self._refuse(key, "malformed")
                 continue
             if envelope.run != self._namespace:
-                self._refuse("other_run")
+                self._refuse(key, "other_run")
                 continue
             if envelope.count <= self._seen.get(envelope.sender, 0):
-                self._refuse("replayed")
+                self._refuse(key, "replayed")
                 continue
             self._seen[envelope.sender] = envelope.count
             try:
                 self._handle(key[len(self._prefix) :], envelope.sender, message)
             except Exception:
-                self._refuse("unusable")
+                self._refuse(key, "unusable")
 
 
 def _tag(secret: bytes, key: str, payload: bytes) -> bytes:
@@ -331,3 +355,16 @@ def next_instant(windows: Iterable[Window], latency: float) -> float:
         ),
         default=math.inf,
     )
+
+
+def token_lives(session: Any, key: str) -> bool:
+    """Whether a liveliness token under ``key`` answers (blocking: run it in a thread).
+
+    A token's going is a hint that its process is gone, never proof: anyone on the
+    network can declare a token of any name and undeclare it. Asking whether one
+    still answers tells a stranger's token going from the real one's.
+    """
+    try:
+        return any(reply.ok is not None for reply in session.liveliness().get(key, timeout=1.0))
+    except Exception:  # the session is closing, or cut off: nobody answers
+        return False

@@ -104,7 +104,7 @@ class ProcessNetwork(Transport):
         environment: Environment,
         flush: Callable[[], None] | None = None,
     ) -> None:
-        self.robots = dict(owners)
+        self.robots = dict(sorted(owners.items()))  # by id: peers() as MemoryTransport's
         self._index = index
         self._latency = latency
         self._clock = clock

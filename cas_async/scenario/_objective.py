@@ -281,7 +281,8 @@ def not_distributable(scenario: Path, app: str, objective: Objective) -> str:
     return (
         f"{scenario}: --processes: {app}'s objective {name} is not "
         "distributable. Across processes the robots run in workers and the world process "
-        "holds the Environment (every robot's motions and the item ledger); an objective "
+        "observes a mirror of their Environment (every robot's motions and the item "
+        "ledger); an objective "
         "that reads only those (positions, distances, items: the Environment and its Watch), "
         f"never the robots' layers, may run there: then set distributable = True on {name}. "
         "Otherwise run without --processes."

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Awaitable
 from typing import TypeVar
 
-from .._errors import ConfigurationError
+from .._errors import CasError
 from .._wall import wall_bounded
 
 __all__ = ["WorkerLost", "within"]
@@ -15,8 +15,12 @@ T = TypeVar("T")
 _TIMED_OUT = object()
 
 
-class WorkerLost(ConfigurationError):
-    """A worker process went away, failed, or did not answer in time."""
+class WorkerLost(CasError):
+    """A process of a run across processes went away, failed, or did not answer in time.
+
+    A run failure (exit code 1), not a configuration error: the set-up was right,
+    a process of it was not there.
+    """
 
 
 async def within(aw: Awaitable[T], seconds: float, what: str) -> T:

@@ -326,6 +326,16 @@ class ScenarioRun:
             await self._world.finish()  # the workers stop, and send their counts
         return self._end(status, failure)
 
+    def failed_to_start(self, error: BaseException) -> RunResult:
+        """The run as it ends when its robots could not start: failed, with ``error``.
+
+        For a start refused (a transport, a clock, a world whose workers did not
+        come): one line says why (``error``), no traceback.
+        """
+        result = self._end(RunStatus.FAILED, error)
+        result.traceback = None
+        return result
+
     def interrupt(self) -> RunResult:
         """Ends the run where it stands, as a set ``stop`` does, but at once; returns the result.
 
@@ -466,6 +476,9 @@ class ScenarioRun:
         return self._swarm.message_counts(), self._swarm.drop_counts()
 
     def _count_faults(self) -> None:
+        if self._world is not None:  # the robots' wires are the workers'
+            self.result.faults = self._world.fault_counts()
+            return
         transport = self._transport
         wire = transport.inner if isinstance(transport, AuthenticatedTransport) else transport
         if isinstance(wire, FaultyTransport):

@@ -31,10 +31,13 @@ from pathlib import Path
 from typing import Any, Final
 
 from .._clock import Clock, ScaledClock
+from .._errors import ConfigurationError
 from .._runner import run
 from .._swarm import Swarm
 from .._swarm_key import SwarmKey
 from .._virtual_loop import VirtualTimeLoop
+from ..transport._base import Transport
+from ..transport._faulty import FaultyTransport
 from ..transport._zenoh import import_zenoh, loopback_config
 from ._control import (
     SUSPECT_LIMIT,
@@ -53,6 +56,7 @@ from ._control import (
     Welcome,
     Window,
     next_instant,
+    token_lives,
 )
 from ._loader import Scenario, scenario_from_data
 from ._network import ProcessNetwork
@@ -83,8 +87,6 @@ async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
     try:
         session = await asyncio.to_thread(zenoh.open, config)
     except Exception as exc:
-        from .._errors import ConfigurationError
-
         raise ConfigurationError(f"worker: cannot connect to {connect}: {exc}") from exc
     nonce = secrets.token_hex(8)
     answer: asyncio.Future[Control] = asyncio.get_running_loop().create_future()
@@ -93,14 +95,24 @@ async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
         if suffix == f"welcome/{nonce}" and sender == WORLD and not answer.done():
             answer.set_result(message)
 
-    lobby = Channel(session, LOBBY, int(nonce, 16) & 0x7FFFFFFF, key, handle)
+    def refused(suffix: str, reason: str) -> None:
+        if suffix == f"welcome/{nonce}" and not answer.done():
+            answer.set_exception(
+                ConfigurationError(
+                    f"worker: the world at {connect} signs with another key than this "
+                    f"worker's ({reason} answer): start the worker with the world's key "
+                    f"file (--key-file, or {SwarmKey.ENV_VAR})"
+                )
+            )
+
+    lobby = Channel(session, LOBBY, int(nonce, 16) & 0x7FFFFFFF, key, handle, refused)
     try:
         lobby.listen(f"welcome/{nonce}")
         deadline = time.monotonic() + limit
         while not answer.done():
             if time.monotonic() > deadline:
                 raise WorkerLost(f"worker: no answer from a world at {connect} (a wrong key?)")
-            lobby.send("hello", Hello(nonce, time.time(), os.getpid()))
+            lobby.send(f"hello/{nonce}", Hello(nonce, time.time(), os.getpid()))
             with contextlib.suppress(WorkerLost):
                 await within(asyncio.shield(answer), _HELLO_EVERY, "the world's welcome")
         message = answer.result()
@@ -111,8 +123,6 @@ async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
         case Welcome():
             return message
         case Full(workers=workers):
-            from .._errors import ConfigurationError
-
             raise ConfigurationError(f"worker: the world at {connect} has its {workers} workers")
     raise WorkerLost(f"worker: the world at {connect} answered {type(message).__name__}")
 
@@ -179,6 +189,9 @@ class _Worker:
         self._world_word = time.monotonic()  # when the world last said something
         self._world_suspect = False  # its token went: it has SUSPECT_LIMIT to say something
         self._world_lost: str | None = None
+        self._session: Any = None
+        self._wire: Transport | None = None  # the robots' transport: the network, faulty or not
+        self._watching: list[asyncio.Future[None]] = []  # token checks under way
 
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
@@ -198,7 +211,7 @@ class _Worker:
             environment,
             flush=None if virtual else self._schedule_flush,
         )
-        transport = faulty(scenario, network, clock)
+        transport = self._wire = faulty(scenario, network, clock)
         mission = scenario.app.build(scenario.setup(environment, clock, transport))
         environment.set_local(own, network)
         self._recorder = Recorder(environment, own)
@@ -209,7 +222,7 @@ class _Worker:
             listen=list(self._listen),
             connect=[self._connect],
         )
-        session = await asyncio.to_thread(zenoh.open, config)
+        session = self._session = await asyncio.to_thread(zenoh.open, config)
         channel = self._channel = Channel(
             session, welcome.namespace, self._index, self._key, self._on_message
         )
@@ -264,6 +277,8 @@ class _Worker:
                 if declared is not None:
                     with contextlib.suppress(Exception):
                         declared.undeclare()
+            for checking in self._watching:
+                checking.cancel()
             channel.close()
             session.close()
         if failed is None and self._world_lost is not None:
@@ -275,7 +290,10 @@ class _Worker:
     def _counts(self) -> Counts:
         counts = self._swarm.message_counts()
         refused = {} if self._channel is None else dict(self._channel.refused)
-        return Counts(counts["internal"], counts["external"], self._swarm.drop_counts(), refused)
+        faults = self._wire.stats if isinstance(self._wire, FaultyTransport) else None
+        return Counts(
+            counts["internal"], counts["external"], self._swarm.drop_counts(), refused, faults
+        )
 
     # -- virtual time: windows -----------------------------------------------------------
 
@@ -358,7 +376,13 @@ class _Worker:
                 loop.call_soon_threadsafe(self._world_suspected)
 
     def _world_suspected(self) -> None:
-        self._world_suspect = True
+        self._watching.append(asyncio.ensure_future(self._suspect_world_unless_alive()))
+
+    async def _suspect_world_unless_alive(self) -> None:
+        """The world's token no longer answers: it has SUSPECT_LIMIT to say something."""
+        key = f"{self._welcome.namespace}/world"
+        if not await asyncio.to_thread(token_lives, self._session, key):
+            self._world_suspect = True
 
     def _check_world(self) -> None:
         """Stops this worker if the world said nothing for too long (see the module docs).

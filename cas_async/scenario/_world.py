@@ -35,6 +35,8 @@ from ..transport._base import Transport
 from ..transport._memory import MemoryTransport
 from ..transport._zenoh import import_zenoh, loopback_config
 from ._app import Mission
+from ._app_import import robot_counts
+from ._capacity import Capacity, capacity_problems
 from ._control import (
     BEAT_EVERY,
     SUSPECT_LIMIT,
@@ -50,10 +52,12 @@ from ._control import (
     Grant,
     Hello,
     Ready,
+    Refused,
     Stop,
     Welcome,
     Window,
     next_instant,
+    token_lives,
 )
 from ._loader import DEFAULT_LATENCY, Scenario
 from ._observer import Observation, Observer
@@ -97,6 +101,7 @@ class World:
     ) -> None:
         if workers < 1:
             raise ConfigurationError(f"a run across processes needs >= 1 worker, got {workers}")
+        _check_size(scenario, workers)
         if scenario.network.latency <= 0:
             raise ConfigurationError(
                 f"{scenario.path}: network.latency = 0 runs in one process only: a run across "
@@ -130,6 +135,7 @@ class World:
         self._suspect: set[int] = set()  # workers whose token went: to prove they live
         self._last_word: dict[int, float] = {}  # a worker -> when it last said something
         self._beaten = 0.0  # when the world last said it lives (Beat)
+        self._said_key = False  # that a hello did not check against the key
         self._token_of_world: Any = None
         self._lost: BaseException | None = None
         self._news: asyncio.Event | None = None
@@ -187,8 +193,10 @@ class World:
             self._session = await asyncio.to_thread(zenoh.open, config)
         except Exception as exc:
             raise ConfigurationError(f"world: cannot listen on {self.endpoint}: {exc}") from exc
-        self._lobby = Channel(self._session, LOBBY, WORLD, self._key, self._on_lobby)
-        self._lobby.listen("hello")
+        self._lobby = Channel(
+            self._session, LOBBY, WORLD, self._key, self._on_lobby, self._lobby_refused
+        )
+        self._lobby.listen("hello/*")
         self._channel = channel = Channel(
             self._session, self.namespace, WORLD, self._key, self._on_message
         )
@@ -354,6 +362,17 @@ class World:
             "worker_waited_s": waited,
         }
 
+    def fault_counts(self) -> dict[str, int] | None:
+        """The ``[faults]`` counts of every worker's robots, summed (``None``: no faults)."""
+        reports = [counts.faults for counts in self._counts.values() if counts.faults is not None]
+        if not reports:
+            return None
+        total: dict[str, int] = {}
+        for faults in reports:
+            for name, n in faults.items():
+                total[name] = total.get(name, 0) + n
+        return total
+
     def message_counts(self) -> tuple[dict[str, dict[str, int]], dict[str, int]]:
         """Every worker's message counts by kind and class, and drop reasons, summed.
 
@@ -504,7 +523,9 @@ class World:
     def _on_lobby(self, suffix: str, sender: int, message: Control) -> None:
         lobby = self._lobby
         match message:
-            case Hello(nonce=nonce, sent=sent, pid=pid) if suffix == "hello" and lobby is not None:
+            case Hello(nonce=nonce, sent=sent, pid=pid) if (
+                suffix == f"hello/{nonce}" and lobby is not None
+            ):
                 if abs(time.time() - sent) > HELLO_AGE:
                     raise ValueError("a stale hello (a replay?)")
                 index = self._joined.get(nonce)
@@ -518,6 +539,21 @@ class World:
                 lobby.send(
                     f"welcome/{nonce}",
                     Welcome(index, self.namespace, str(scenario.path), scenario.data, self.shares),
+                )
+
+    def _lobby_refused(self, suffix: str, reason: str) -> None:
+        """A hello that did not check: its sender is told (it learns the keys differ)."""
+        lobby, nonce = self._lobby, suffix.removeprefix("hello/")
+        if lobby is None or suffix == nonce or reason not in ("unsigned", "malformed"):
+            return
+        if len(nonce) == 16 and all(c in "0123456789abcdef" for c in nonce):
+            lobby.send(f"welcome/{nonce}", Refused("the hello does not check against the key"))
+            if not self._said_key:
+                self._said_key = True
+                print(
+                    "world: a worker's hello does not check against this world's key: "
+                    "start every worker with the world's key file",
+                    file=sys.stderr,
                 )
 
     def _on_message(self, suffix: str, sender: int, message: Control) -> None:
@@ -553,13 +589,44 @@ class World:
         index = key.rsplit("/", 1)[1]
         if loop is not None and index.isdigit() and int(index) < self._workers:
             with contextlib.suppress(RuntimeError):
-                loop.call_soon_threadsafe(self._suspected, int(index))
+                loop.call_soon_threadsafe(self._check_token, key, int(index))
 
-    def _suspected(self, index: int) -> None:
-        if index not in self._byes:
-            self._suspect.add(index)
-            if self._news is not None:
-                self._news.set()
+    def _check_token(self, key: str, index: int) -> None:
+        self._watchers.append(asyncio.ensure_future(self._suspect_unless_alive(key, index)))
+
+    async def _suspect_unless_alive(self, key: str, index: int) -> None:
+        """A worker whose token no longer answers is suspect: it has SUSPECT_LIMIT to speak."""
+        if index in self._byes or await asyncio.to_thread(token_lives, self._session, key):
+            return  # another session's token of that name went: not the worker's
+        self._suspect.add(index)
+        if self._news is not None:
+            self._news.set()
+
+
+def _check_size(scenario: Scenario, workers: int) -> None:
+    """Refuses more workers than robots, and more processes than memory holds.
+
+    Raises:
+        ConfigurationError: saying which, and the most there can be.
+    """
+    counts = robot_counts(scenario.app, scenario.app_path, scenario.config)
+    total = sum(counts.values())
+    if workers > total:
+        raise ConfigurationError(
+            f"{scenario.path}: {workers} worker processes for {total} robots: "
+            f"at most {total} (one robot each)"
+        )
+    run = scenario.run
+    problems = capacity_problems(
+        counts,
+        "memory",
+        Capacity.of_this_machine(),
+        samples=run.max_time / run.trace_interval,
+        processes=workers + 1,
+    )
+    if problems:
+        key, problem = problems[0]
+        raise ConfigurationError(f"{scenario.path}: {key}: {problem}")
 
 
 def _split(observation: Observation, horizon: float) -> tuple[Observation, Observation]:

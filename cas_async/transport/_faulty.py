@@ -13,8 +13,10 @@ broadcast is several ``send()`` calls, each decided on its own. ``send()`` keeps
 endpoint contract: an unknown robot or a closed endpoint raises at once, even when
 the datagram would have been lost.
 
-Determinism: one ``random.Random(seed)`` per transport draws every decision, so the
-same sends in the same order get the same faults. With virtual time and the memory
+Determinism: each sending robot has a random generator of its own, seeded by the
+transport's ``seed`` and the robot's id, that draws every decision about its
+datagrams: the same sends of a robot get the same faults, whatever the other
+robots do and whichever process runs them. With virtual time and the memory
 transport the sends themselves are deterministic, hence so is the whole run.
 
 Counts (:attr:`FaultyTransport.stats`, totals over all endpoints):
@@ -132,6 +134,7 @@ class FaultyEndpoint(Endpoint):
         "_inner",
         "_loop",
         "_net",
+        "_rng",
         "max_datagram_size",
         "robot_id",
     )
@@ -142,6 +145,7 @@ class FaultyEndpoint(Endpoint):
         self._net = transport
         self._inner = inner
         self._loop = loop
+        self._rng = transport.random_for(inner.robot_id)
         self._closed = False
         self._delayed: set[_Pending] = set()
         self._held: list[_Pending] = []  # in the order they were held back
@@ -164,7 +168,7 @@ class FaultyEndpoint(Endpoint):
         if not self._inner.knows(robot_id):
             raise UnknownRobotError(f"robot {self.robot_id}: no address for robot {robot_id}")
         net = self._net
-        stats, rng, faults = net._stats, net._rng, net.faults
+        stats, rng, faults = net._stats, self._rng, net.faults
         stats["sent"] += 1
         # Copies held back before this datagram go out after it: it overtakes them.
         overtaken, self._held = self._held, []
@@ -292,7 +296,7 @@ class FaultyTransport(Transport):
         self.seed = seed
         self.clock = clock
         self.hold = float(hold)
-        self._rng = random.Random(seed)
+        self._rngs: dict[RobotId, random.Random] = {}
         self._stats = dict.fromkeys(_STATS, 0)
 
     @property
@@ -308,6 +312,17 @@ class FaultyTransport(Transport):
     @authenticated.setter
     def authenticated(self, value: bool) -> None:
         self.inner.authenticated = value
+
+    def random_for(self, robot_id: RobotId) -> random.Random:
+        """The generator that decides the faults of ``robot_id``'s datagrams.
+
+        One per robot, kept over its endpoints: a robot that opens again goes on
+        where it was.
+        """
+        rng = self._rngs.get(robot_id)
+        if rng is None:
+            rng = self._rngs[robot_id] = random.Random(f"{self.seed}/{robot_id}")
+        return rng
 
     @property
     def stats(self) -> dict[str, int]:

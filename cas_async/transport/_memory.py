@@ -128,7 +128,9 @@ class MemoryEndpoint(Endpoint):
             )
 
     def peers(self) -> Iterable[RobotId]:
-        return [rid for rid in self._network._endpoints if rid != self.robot_id]
+        # By id: a broadcast reaches them in the same order in one process as across
+        # several (its datagrams' faults are drawn in that order).
+        return sorted(rid for rid in self._network._endpoints if rid != self.robot_id)
 
     def knows(self, robot_id: RobotId) -> bool:
         return robot_id in self._network._endpoints
