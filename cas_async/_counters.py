@@ -52,3 +52,9 @@ class LayerCounters:
         for split, into in ((self.internal_by_type, internal), (self.external_by_type, external)):
             for cls, n in split.items():
                 into[cls.__name__] = into.get(cls.__name__, 0) + n
+
+    def add_by_type(self, internal: dict[type[Any], int], external: dict[type[Any], int]) -> None:
+        """Adds the per-class splits to ``internal`` and ``external``, by class."""
+        for split, into in ((self.internal_by_type, internal), (self.external_by_type, external)):
+            for cls, n in split.items():
+                into[cls] = into.get(cls, 0) + n

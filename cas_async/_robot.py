@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Iterable, Sequence
-from typing import final
+from typing import Any, final
 
 from ._channel import DEFAULT_QUEUE_LIMIT
 from ._clock import Clock, ScaledClock
@@ -206,6 +206,13 @@ class Robot:
         for runtime in self._runtimes:
             runtime.counters.add_by_name(internal, external)
         return {"internal": internal, "external": external}
+
+    def add_message_counts(
+        self, internal: dict[type[Any], int], external: dict[type[Any], int]
+    ) -> None:
+        """Adds what :meth:`message_counts` counts to ``internal`` and ``external``, by class."""
+        for runtime in self._runtimes:
+            runtime.counters.add_by_type(internal, external)
 
     def unanswered_requests(self) -> dict[str, int]:
         """Internal requests waiting now that their asked layer did not answer, by who asked what.

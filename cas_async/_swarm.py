@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Iterable, Iterator
-from typing import final
+from typing import Any, final
 
 from ._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from ._robot import Robot
@@ -93,12 +93,15 @@ class Swarm:
 
     def message_counts(self) -> dict[str, dict[str, int]]:
         """Every robot's :meth:`Robot.message_counts`, summed by class name."""
-        total: dict[str, dict[str, int]] = {"internal": {}, "external": {}}
+        internal: dict[type[Any], int] = {}
+        external: dict[type[Any], int] = {}
         for robot in self:
-            for kind, counts in robot.message_counts().items():
-                into = total[kind]
-                for name, n in counts.items():
-                    into[name] = into.get(name, 0) + n
+            robot.add_message_counts(internal, external)
+        total: dict[str, dict[str, int]] = {"internal": {}, "external": {}}
+        for kind, by_type in (("internal", internal), ("external", external)):
+            into = total[kind]
+            for cls, n in by_type.items():  # two classes may share a name
+                into[cls.__name__] = into.get(cls.__name__, 0) + n
         return total
 
     def drop_counts(self) -> dict[str, int]:

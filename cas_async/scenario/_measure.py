@@ -10,6 +10,10 @@ from __future__ import annotations
 
 import math
 import traceback
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
 
 from ..sim._environment import Environment
 from ._app import Mission
@@ -17,7 +21,7 @@ from ._objective import Objective
 from ._results import RunResult, RunStatus
 from ._trace import Trace
 
-__all__ = ["mark_failed", "measure_end", "measure_positions"]
+__all__ = ["PositionMeasures", "mark_failed", "measure_end"]
 
 
 def mark_failed(result: RunResult, error: BaseException) -> None:
@@ -60,17 +64,45 @@ def measure_end(
         result.extra.update(mission.extra())
 
 
-def measure_positions(result: RunResult, mission: Mission, trace: Trace) -> None:
-    """Evaluates the mission's measures on every sample and snapshot of ``trace``."""
-    ids, times = trace.ids, trace.times
-    since = result.sim_time * 2 / 3  # the last third of the run
-    for name, measure in mission.measures.items():
-        values = [float(measure(ids, xy)) for xy in trace.positions]
-        result.series[name] = {"t": times.tolist(), "value": values}
-        late = [v for t, v in zip(times.tolist(), values, strict=True) if t >= since]
-        if late:
-            result.metrics[name] = math.fsum(late) / len(late)
-        result.by_exchange[name] = {
-            "count": [float(n) for n in trace.exchange_counts.tolist()],
-            "value": [float(measure(ids, xy)) for xy in trace.exchange_positions],
-        }
+class PositionMeasures:
+    """The mission's measures of the robots' positions, taken with each sample and snapshot.
+
+    Evaluated as the trace takes them rather than all at the end, so that a run
+    ending (a signal, with ten thousand robots) has nothing heavy left to do.
+    """
+
+    def __init__(self, mission: Mission, ids: Sequence[int]) -> None:
+        self._measures = dict(mission.measures)
+        self._ids = ids
+        self._samples: dict[str, list[float]] = {name: [] for name in self._measures}
+        self._snapshots: dict[str, list[float]] = {name: [] for name in self._measures}
+
+    def sampled(self, xy: npt.NDArray[np.float64]) -> None:
+        """A regular sample was taken with these positions."""
+        for name, measure in self._measures.items():
+            self._samples[name].append(float(measure(self._ids, xy)))
+
+    def exchanged(self, xy: npt.NDArray[np.float64]) -> None:
+        """An exchange snapshot was taken with these positions."""
+        for name, measure in self._measures.items():
+            self._snapshots[name].append(float(measure(self._ids, xy)))
+
+    def write(self, result: RunResult, trace: Trace) -> None:
+        """The series, the last third's means and the values by exchange, into ``result``."""
+        times = trace.times.tolist()
+        since = result.sim_time * 2 / 3  # the last third of the run
+        for name in self._measures:
+            values = self._samples[name]
+            if len(values) != len(times):  # samples not taken through sampled()
+                values = [float(self._measures[name](self._ids, xy)) for xy in trace.positions]
+            result.series[name] = {"t": times, "value": values}
+            late = [v for t, v in zip(times, values, strict=True) if t >= since]
+            if late:
+                result.metrics[name] = math.fsum(late) / len(late)
+            counts = trace.exchange_counts.tolist()
+            by_exchange = self._snapshots[name]
+            if len(by_exchange) != len(counts):
+                by_exchange = [
+                    float(self._measures[name](self._ids, xy)) for xy in trace.exchange_positions
+                ]
+            result.by_exchange[name] = {"count": [float(n) for n in counts], "value": by_exchange}

@@ -38,7 +38,7 @@ from ._gc_policy import young_generation_for
 from ._layers import check_built
 from ._listener import Listeners, RunListener
 from ._loader import Scenario
-from ._measure import mark_failed, measure_end, measure_positions
+from ._measure import PositionMeasures, mark_failed, measure_end
 from ._objective import CallbackWatch, Items, Objective, not_distributable
 from ._observer import Observer, mirror_of
 from ._progress import Progress
@@ -176,6 +176,7 @@ class ScenarioRun:
         """What the run measured: complete once the robots have stopped."""
         self.trace = Trace(environment.robot_ids)
         """Where the robots were over simulated time."""
+        self._measures = PositionMeasures(mission, self.trace.ids)
         self._rows = np.array(self.trace.ids, dtype=np.int64)
         objective.attach(
             CallbackWatch(
@@ -212,6 +213,7 @@ class ScenarioRun:
             return
         xy = self.environment.positions_at(t).xy
         self.trace.exchange(t, count, xy, self._carrying())
+        self._measures.exchanged(xy)
 
     def now(self) -> float:
         """Simulated seconds since the robots started: 0 before, the end's instant after.
@@ -371,7 +373,7 @@ class ScenarioRun:
         )
         if status is RunStatus.COMPLETED and result.makespan is not None:
             self._sample_last(result.makespan)  # the trace ends where the mission did
-        measure_positions(result, self._mission, self.trace)
+        self._measures.write(result, self.trace)
         if self._world is not None:
             result.extra.update(self._world.stats())
         elif self._windowed is not None:
@@ -420,7 +422,9 @@ class ScenarioRun:
         objective = self._objective
         objective.check()  # the full audit of the mission's invariant
         carrying = self._carrying()
-        self.trace.sample(t, self.environment.positions_at(t).xy, carrying)
+        xy = self.environment.positions_at(t).xy
+        self.trace.sample(t, xy, carrying)
+        self._measures.sampled(xy)
         self._listeners.sampled(t, self.trace.at_time(t), carrying)  # the trace's own copy
         if self._progress is not None:
             done, detail = objective.progress()
