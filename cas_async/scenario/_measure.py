@@ -72,37 +72,39 @@ class PositionMeasures:
     """
 
     def __init__(self, mission: Mission, ids: Sequence[int]) -> None:
-        self._measures = dict(mission.measures)
+        self._mission = mission  # its measures as they are now (an embedder may set them)
         self._ids = ids
-        self._samples: dict[str, list[float]] = {name: [] for name in self._measures}
-        self._snapshots: dict[str, list[float]] = {name: [] for name in self._measures}
+        self._samples: dict[str, list[float]] = {}
+        self._snapshots: dict[str, list[float]] = {}
 
     def sampled(self, xy: npt.NDArray[np.float64]) -> None:
         """A regular sample was taken with these positions."""
-        for name, measure in self._measures.items():
-            self._samples[name].append(float(measure(self._ids, xy)))
+        for name, measure in self._mission.measures.items():
+            self._samples.setdefault(name, []).append(float(measure(self._ids, xy)))
 
     def exchanged(self, xy: npt.NDArray[np.float64]) -> None:
         """An exchange snapshot was taken with these positions."""
-        for name, measure in self._measures.items():
-            self._snapshots[name].append(float(measure(self._ids, xy)))
+        for name, measure in self._mission.measures.items():
+            self._snapshots.setdefault(name, []).append(float(measure(self._ids, xy)))
 
     def write(self, result: RunResult, trace: Trace) -> None:
-        """The series, the last third's means and the values by exchange, into ``result``."""
+        """The series, the last third's means and the values by exchange, into ``result``.
+
+        A measure not taken with every sample and snapshot (set meanwhile) is
+        evaluated on the trace now.
+        """
         times = trace.times.tolist()
         since = result.sim_time * 2 / 3  # the last third of the run
-        for name in self._measures:
-            values = self._samples[name]
-            if len(values) != len(times):  # samples not taken through sampled()
-                values = [float(self._measures[name](self._ids, xy)) for xy in trace.positions]
+        for name, measure in self._mission.measures.items():
+            values = self._samples.get(name, [])
+            if len(values) != len(times):
+                values = [float(measure(self._ids, xy)) for xy in trace.positions]
             result.series[name] = {"t": times, "value": values}
             late = [v for t, v in zip(times, values, strict=True) if t >= since]
             if late:
                 result.metrics[name] = math.fsum(late) / len(late)
             counts = trace.exchange_counts.tolist()
-            by_exchange = self._snapshots[name]
+            by_exchange = self._snapshots.get(name, [])
             if len(by_exchange) != len(counts):
-                by_exchange = [
-                    float(self._measures[name](self._ids, xy)) for xy in trace.exchange_positions
-                ]
+                by_exchange = [float(measure(self._ids, xy)) for xy in trace.exchange_positions]
             result.by_exchange[name] = {"count": [float(n) for n in counts], "value": by_exchange}
