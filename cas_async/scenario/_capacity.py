@@ -26,7 +26,7 @@ from typing import Final
 
 from ..transport._fd_limit import descriptor_room
 
-__all__ = ["ROBOT_MEMORY", "Capacity", "capacity_problems"]
+__all__ = ["ROBOT_MEMORY", "Capacity", "capacity_problems", "processes_problem"]
 
 ROBOT_MEMORY: Final = 100 * 1024
 """Bytes a robot takes at its peak over a run, with its share of the messages in flight."""
@@ -143,6 +143,24 @@ def capacity_problems(
                 )
             )
     return problems
+
+
+def processes_problem(
+    counts: Mapping[str, int], workers: int, capacity: Capacity, samples: float = 0
+) -> str | None:
+    """Why ``workers`` worker processes cannot run ``counts`` robots here, or ``None``.
+
+    More workers than robots, or more than memory holds: the world and every
+    worker each build every robot.
+    """
+    total = sum(counts.values())
+    if workers > total:
+        return f"{workers} worker processes for {total} robots: at most {total} (one robot each)"
+    problems = capacity_problems(counts, "memory", capacity, samples, processes=workers + 1)
+    if problems:
+        key, problem = problems[0]
+        return f"{key}: {problem}"
+    return None
 
 
 def _number(n: float) -> str:

@@ -72,6 +72,19 @@ class Observation(msgspec.Struct, array_like=True):
     def __bool__(self) -> bool:
         return bool(self.motions or self.items)
 
+    def split(self, horizon: float) -> tuple[Observation, Observation]:
+        """The records at or before ``horizon``, and the later ones."""
+        return (
+            Observation(
+                [m for m in self.motions if m.t <= horizon],
+                [i for i in self.items if i.t <= horizon],
+            ),
+            Observation(
+                [m for m in self.motions if m.t > horizon],
+                [i for i in self.items if i.t > horizon],
+            ),
+        )
+
 
 class Recorder:
     """Records what an Environment's own robots do, for the run's :class:`Observer`.

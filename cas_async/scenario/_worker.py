@@ -59,15 +59,15 @@ from ._control import (
     token_lives,
 )
 from ._loader import Scenario, scenario_from_data
+from ._lobby import LOBBY
 from ._network import ProcessNetwork
 from ._observer import Recorder
 from ._processes import WorkerLost, within
 from ._run_transport import faulty
 from ._windows import Held, Windows
 
-__all__ = ["LOBBY", "run_worker"]
+__all__ = ["run_worker"]
 
-LOBBY: Final = "cas_async/lobby"
 HEARTBEAT: Final = 0.05
 """Wall seconds between two reports of a worker's simulated time, on scaled time."""
 COUNTS_EVERY: Final = 1.0

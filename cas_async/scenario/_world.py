@@ -19,10 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
 import secrets
-import socket
-import sys
 import time
 from collections.abc import Callable, Sequence
 from typing import Any, Final
@@ -34,12 +31,13 @@ from ..sim._environment import Environment
 from ..transport._base import Transport
 from ..transport._memory import MemoryTransport
 from ..transport._zenoh import import_zenoh, loopback_config
+from ..transport._zenoh_config import with_free_port
 from ._app import Mission
 from ._app_import import robot_counts
-from ._capacity import Capacity, capacity_problems
+from ._capacity import Capacity, processes_problem
+from ._children import Children
 from ._control import (
     BEAT_EVERY,
-    SUSPECT_LIMIT,
     WORLD,
     Beat,
     Bye,
@@ -47,32 +45,25 @@ from ._control import (
     Control,
     Counts,
     Failed,
-    Full,
     Go,
     Grant,
-    Hello,
     Ready,
-    Refused,
     Stop,
-    Welcome,
     Window,
     next_instant,
-    token_lives,
 )
+from ._liveness import Liveness
 from ._loader import DEFAULT_LATENCY, Scenario
+from ._lobby import Lobby
 from ._observer import Observation, Observer
 from ._partition import partition
-from ._processes import WorkerLost, within
+from ._processes import WorkerLost
 from ._results import RunStatus
-from ._worker import LOBBY
 
 __all__ = ["World"]
 
 STOP_LIMIT: Final = 10.0
 """Wall seconds the world waits for its workers' last counts, all together."""
-HELLO_AGE: Final = 30.0
-"""Wall seconds a worker's hello stays fresh (an older one is a replay)."""
-_STDERR_LINES: Final = 12
 
 
 class World:
@@ -101,7 +92,14 @@ class World:
     ) -> None:
         if workers < 1:
             raise ConfigurationError(f"a run across processes needs >= 1 worker, got {workers}")
-        _check_size(scenario, workers)
+        problem = processes_problem(
+            robot_counts(scenario.app, scenario.app_path, scenario.config),
+            workers,
+            Capacity.of_this_machine(),
+            samples=scenario.run.max_time / scenario.run.trace_interval,
+        )
+        if problem is not None:
+            raise ConfigurationError(f"{scenario.path}: {problem}")
         if scenario.network.latency <= 0:
             raise ConfigurationError(
                 f"{scenario.path}: network.latency = 0 runs in one process only: a run across "
@@ -120,22 +118,17 @@ class World:
         self.namespace = f"cas_async/run/{secrets.token_hex(8)}"
         self._session: Any = None
         self._channel: Channel | None = None
-        self._lobby: Channel | None = None
-        self._tokens: Any = None
-        self._children: list[asyncio.subprocess.Process] = []
-        self._stderr: dict[int, list[str]] = {}
+        self._lobby: Lobby | None = None
+        self._children = Children(self._exited)
         self._watchers: list[asyncio.Task[None]] = []
-        self._joined: dict[str, int] = {}  # lobby nonce -> worker index
         self._ready: set[int] = set()
         self._counts: dict[int, Counts] = {}
         self._byes: set[int] = set()
         self._windows: dict[int, dict[int, Window]] = {}  # k -> worker -> its window
         self._flowing: list[Observation] = []  # scaled time: records not applied yet
         self._heard: dict[int, float] = {}  # scaled time: each worker's simulated time heard
-        self._suspect: set[int] = set()  # workers whose token went: to prove they live
-        self._last_word: dict[int, float] = {}  # a worker -> when it last said something
+        self._liveness = Liveness(workers, scenario.run.window_limit, self._lost_robots, self.tick)
         self._beaten = 0.0  # when the world last said it lives (Beat)
-        self._said_key = False  # that a hello did not check against the key
         self._token_of_world: Any = None
         self._lost: BaseException | None = None
         self._news: asyncio.Event | None = None
@@ -187,28 +180,30 @@ class World:
         if not self._scenario.run.virtual:  # else the held loop ticks
             self._watchers.append(asyncio.ensure_future(self._ticking()))
         zenoh = import_zenoh()
-        self.endpoint = _with_free_port(self._listen)
+        self.endpoint = with_free_port(self._listen)
         config = loopback_config(mode="router", listen=[self.endpoint])
         try:
             self._session = await asyncio.to_thread(zenoh.open, config)
         except Exception as exc:
             raise ConfigurationError(f"world: cannot listen on {self.endpoint}: {exc}") from exc
-        self._lobby = Channel(
-            self._session, LOBBY, WORLD, self._key, self._on_lobby, self._lobby_refused
+        self._lobby = Lobby(
+            self._session,
+            self._key,
+            self._scenario,
+            self._workers,
+            self.namespace,
+            lambda: self.shares,
+            self._joined,
         )
-        self._lobby.listen("hello/*")
         self._channel = channel = Channel(
             self._session, self.namespace, WORLD, self._key, self._on_message
         )
         channel.listen("world")
         channel.listen("win/*")
         self._token_of_world = self._session.liveliness().declare_token(f"{self.namespace}/world")
-        self._tokens = self._session.liveliness().declare_subscriber(
-            f"{self.namespace}/worker/*",
-            lambda sample: self._token(str(sample.key_expr), sample.kind),
-        )
+        self._liveness.watch(self._session, self.namespace)
         if self._spawn:
-            await self._spawn_workers()
+            await self._children.spawn(self._workers, self.endpoint, self._key)
         limit = self._scenario.run.window_limit
         await self._until(lambda: len(self._ready) >= self._workers, limit, "workers to be ready")
         epoch = time.time() + 0.5 if not self._scenario.run.virtual else 0.0
@@ -263,24 +258,18 @@ class World:
         """
         news = self._news
         assert news is not None
-        limit, started = self._scenario.run.window_limit, time.monotonic()
+        started = time.monotonic()
         while True:
             if self._lost is not None:
                 raise self._lost
-            now = time.monotonic()
-            silent = [
-                w
-                for w in range(self._workers)
-                if now - self._last_word.get(w, started)
-                > (SUSPECT_LIMIT if w in self._suspect else limit)
-            ]
+            silent = self._liveness.silent(range(self._workers), started)
             if silent:  # a worker reports every HEARTBEAT: this one stopped
-                raise self._silence(silent, "", limit)
+                raise self._liveness.lost(silent)
             if len(self._heard) == self._workers and self._flowing:
                 horizon = min(self._heard.values())
                 ready, later = [], []
                 for observation in self._flowing:
-                    split = _split(observation, horizon)
+                    split = observation.split(horizon)
                     ready.append(split[0])
                     if split[1]:
                         later.append(split[1])
@@ -293,7 +282,6 @@ class World:
         """Every worker's window ``k`` (``None``: ``stop`` was set meanwhile)."""
         news = self._news
         assert news is not None
-        limit = self._scenario.run.window_limit
         started = time.monotonic()
         while True:
             if self._lost is not None:
@@ -304,10 +292,9 @@ class World:
             if stop.is_set():
                 return None
             missing = [w for w in range(self._workers) if w not in got]
-            waited = time.monotonic() - started
-            suspect = [w for w in missing if w in self._suspect]
-            if waited > (SUSPECT_LIMIT if suspect else limit):
-                raise self._silence(suspect or missing, f" for window {k}", limit)
+            silent = self._liveness.silent(missing, started)
+            if silent:
+                raise self._liveness.lost(silent, f" for window {k}")
             news.clear()
             await news.wait()  # news, or a tick (see tick): the wall clock is looked at again
 
@@ -389,22 +376,24 @@ class World:
             for drops in (counts.dropped, counts.refused):
                 for reason, n in drops.items():
                     dropped[reason] = dropped.get(reason, 0) + n
-        for channel in (self._channel, self._lobby):
-            if channel is not None:
-                for reason, n in channel.refused.items():
-                    dropped[reason] = dropped.get(reason, 0) + n
+        for refused in (
+            {} if self._channel is None else self._channel.refused,
+            {} if self._lobby is None else self._lobby.refused,
+        ):
+            for reason, n in refused.items():
+                dropped[reason] = dropped.get(reason, 0) + n
         return total, dropped
 
     async def close(self) -> None:
         """Closes the channels and the router; every child process is gone afterwards."""
-        for channel in (self._channel, self._lobby):
-            if channel is not None:
-                channel.close()
-        for declared in (self._tokens, self._token_of_world):
-            if declared is not None:
-                with contextlib.suppress(Exception):
-                    declared.undeclare()
-        await asyncio.gather(*(self._reap(child) for child in self._children))
+        for closing in (self._channel, self._lobby):
+            if closing is not None:
+                closing.close()
+        self._liveness.close()
+        if self._token_of_world is not None:
+            with contextlib.suppress(Exception):
+                self._token_of_world.undeclare()
+        await self._children.reap()
         for watcher in self._watchers:
             watcher.cancel()
         session, self._session = self._session, None
@@ -413,63 +402,25 @@ class World:
 
     # -- workers ---------------------------------------------------------------------
 
-    async def _spawn_workers(self) -> None:
-        env = {**os.environ}
-        if self._key is not None:
-            env[SwarmKey.ENV_VAR] = self._key.secret.hex()
-        for _ in range(self._workers):
-            child = await asyncio.create_subprocess_exec(
-                sys.executable,
-                "-m",
-                "cas_async",
-                "worker",
-                "--connect",
-                self.endpoint,
-                "--quiet",
-                env=env,
-                stdin=asyncio.subprocess.DEVNULL,
-                stderr=asyncio.subprocess.PIPE,
-            )
-            self._children.append(child)
-            self._watchers.append(asyncio.ensure_future(self._watch(child)))
+    def _joined(self, pid: int, index: int) -> None:
+        self._pids[pid] = index
 
-    async def _watch(self, child: asyncio.subprocess.Process) -> None:
-        """Passes a child's stderr on, keeps its last lines; its exit before its bye is a loss."""
-        lines: list[str] = []
-        assert child.stderr is not None
-        async for raw in child.stderr:
-            line = raw.decode(errors="replace")
-            sys.stderr.write(line)
-            lines.append(line.rstrip())
-            del lines[:-_STDERR_LINES]
-        code = await child.wait()
-        index = self._pids.get(child.pid)
+    def _exited(self, pid: int, code: int, said: str) -> None:
+        """A child worker exited: a loss unless it said its Bye and exited cleanly."""
+        index = self._pids.get(pid)
         if code == 0 and index is not None and index in self._byes:
             return
-        said = "; ".join(line for line in lines[-3:] if line) or "nothing on stderr"
         when = "during set-up" if len(self._ready) < self._workers else "during the run"
         who = "a worker" if index is None else f"worker {index}"
         self._lose(
             WorkerLost(
-                f"{who} is gone: its process {child.pid} exited with code {code} {when}: {said}"
+                f"{who} is gone: its process {pid} exited with code {code} {when}: {said}"
                 + ("" if index is None else self._lost_robots([index]))
             )
         )
 
-    async def _reap(self, child: asyncio.subprocess.Process) -> None:
-        with contextlib.suppress(WorkerLost):
-            await within(child.wait(), 5.0, "a worker to exit")
-        if child.returncode is None:
-            with contextlib.suppress(ProcessLookupError):
-                child.kill()
-            await child.wait()
-
     def _gone(self) -> set[int]:
-        return {
-            self._pids[child.pid]
-            for child in self._children
-            if child.returncode is not None and child.pid in self._pids
-        }
+        return {self._pids[pid] for pid in self._children.exited() if pid in self._pids}
 
     async def _until(self, condition: Callable[[], bool], seconds: float, what: str) -> None:
         """Waits until ``condition()`` holds, for at most ``seconds`` of wall time."""
@@ -483,23 +434,6 @@ class World:
                 raise WorkerLost(f"gave up after {seconds:g} s waiting for {what}")
             news.clear()
             await news.wait()  # news, or a tick
-
-    def _silence(self, who: list[int], where: str, limit: float) -> WorkerLost:
-        """The loss of workers that said nothing for too long (their token gone, or not)."""
-        gone = all(w in self._suspect for w in who)
-        many = len(who) > 1
-        return WorkerLost(
-            f"worker{'s' if many else ''} {', '.join(map(str, who))} "
-            + (
-                f"{'are' if many else 'is'} gone: {'their tokens' if many else 'its token'} "
-                "went and no word came"
-                f"{where} within {SUSPECT_LIMIT:g} s"
-                if gone
-                else f"{'are' if many else 'is'} frozen or cut off: no word{where} "
-                f"within {limit:g} s (run.window_limit)"
-            )
-            + self._lost_robots(who)
-        )
 
     def _lose(self, lost: BaseException) -> None:
         if self._lost is None:
@@ -520,47 +454,10 @@ class World:
 
     # -- what comes in -----------------------------------------------------------------
 
-    def _on_lobby(self, suffix: str, sender: int, message: Control) -> None:
-        lobby = self._lobby
-        match message:
-            case Hello(nonce=nonce, sent=sent, pid=pid) if (
-                suffix == f"hello/{nonce}" and lobby is not None
-            ):
-                if abs(time.time() - sent) > HELLO_AGE:
-                    raise ValueError("a stale hello (a replay?)")
-                index = self._joined.get(nonce)
-                if index is None and len(self._joined) < self._workers:
-                    index = self._joined[nonce] = len(self._joined)
-                    self._pids[pid] = index
-                if index is None:
-                    lobby.send(f"welcome/{nonce}", Full(self._workers))
-                    return
-                scenario = self._scenario
-                lobby.send(
-                    f"welcome/{nonce}",
-                    Welcome(index, self.namespace, str(scenario.path), scenario.data, self.shares),
-                )
-
-    def _lobby_refused(self, suffix: str, reason: str) -> None:
-        """A hello that did not check: its sender is told (it learns the keys differ)."""
-        lobby, nonce = self._lobby, suffix.removeprefix("hello/")
-        if lobby is None or suffix == nonce or reason not in ("unsigned", "malformed"):
-            return
-        if len(nonce) == 16 and all(c in "0123456789abcdef" for c in nonce):
-            lobby.send(f"welcome/{nonce}", Refused("the hello does not check against the key"))
-            if not self._said_key:
-                self._said_key = True
-                print(
-                    "world: a worker's hello does not check against this world's key: "
-                    "start every worker with the world's key file",
-                    file=sys.stderr,
-                )
-
     def _on_message(self, suffix: str, sender: int, message: Control) -> None:
         if not 0 <= sender < self._workers:
             raise ValueError(f"a message from no worker ({sender})")
-        self._suspect.discard(sender)  # a signed word: it lives
-        self._last_word[sender] = time.monotonic()
+        self._liveness.heard(sender)  # a signed word: it lives
         match message:
             case Window(k=k):
                 if message.counts.internal or message.counts.external or message.counts.dropped:
@@ -578,77 +475,6 @@ class World:
                 self._counts[sender] = counts
                 self._waited[sender] = waited
                 self._byes.add(sender)
+                self._liveness.said_bye(sender)
         if self._news is not None:
             self._news.set()
-
-    def _token(self, key: str, kind: Any) -> None:
-        """On a Zenoh thread: a worker's token went (a hint to check, never proof)."""
-        loop = self._loop
-        if loop is None or kind != import_zenoh().SampleKind.DELETE:
-            return
-        index = key.rsplit("/", 1)[1]
-        if loop is not None and index.isdigit() and int(index) < self._workers:
-            with contextlib.suppress(RuntimeError):
-                loop.call_soon_threadsafe(self._check_token, key, int(index))
-
-    def _check_token(self, key: str, index: int) -> None:
-        self._watchers.append(asyncio.ensure_future(self._suspect_unless_alive(key, index)))
-
-    async def _suspect_unless_alive(self, key: str, index: int) -> None:
-        """A worker whose token no longer answers is suspect: it has SUSPECT_LIMIT to speak."""
-        if index in self._byes or await asyncio.to_thread(token_lives, self._session, key):
-            return  # another session's token of that name went: not the worker's
-        self._suspect.add(index)
-        if self._news is not None:
-            self._news.set()
-
-
-def _check_size(scenario: Scenario, workers: int) -> None:
-    """Refuses more workers than robots, and more processes than memory holds.
-
-    Raises:
-        ConfigurationError: saying which, and the most there can be.
-    """
-    counts = robot_counts(scenario.app, scenario.app_path, scenario.config)
-    total = sum(counts.values())
-    if workers > total:
-        raise ConfigurationError(
-            f"{scenario.path}: {workers} worker processes for {total} robots: "
-            f"at most {total} (one robot each)"
-        )
-    run = scenario.run
-    problems = capacity_problems(
-        counts,
-        "memory",
-        Capacity.of_this_machine(),
-        samples=run.max_time / run.trace_interval,
-        processes=workers + 1,
-    )
-    if problems:
-        key, problem = problems[0]
-        raise ConfigurationError(f"{scenario.path}: {key}: {problem}")
-
-
-def _split(observation: Observation, horizon: float) -> tuple[Observation, Observation]:
-    """The records of ``observation`` at or before ``horizon``, and the later ones."""
-    return (
-        Observation(
-            [m for m in observation.motions if m.t <= horizon],
-            [i for i in observation.items if i.t <= horizon],
-        ),
-        Observation(
-            [m for m in observation.motions if m.t > horizon],
-            [i for i in observation.items if i.t > horizon],
-        ),
-    )
-
-
-def _with_free_port(endpoint: str) -> str:
-    """``endpoint`` with port 0 replaced by one free now (Zenoh does not say which it bound)."""
-    head, _, port = endpoint.rpartition(":")
-    if port != "0":
-        return endpoint
-    _, _, host = head.partition("/")
-    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
-        probe.bind((host.strip("[]"), 0))
-        return f"{head}:{probe.getsockname()[1]}"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import socket
 import warnings
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Final, Literal
@@ -21,6 +22,7 @@ __all__ = [
     "import_zenoh",
     "loopback_config",
     "warn_if_exposed",
+    "with_free_port",
 ]
 
 Mode = Literal["peer", "client", "router"]
@@ -84,3 +86,14 @@ def warn_if_exposed(listen: Sequence[str]) -> None:
             InsecureBindWarning,
             stacklevel=4,
         )
+
+
+def with_free_port(endpoint: str) -> str:
+    """``endpoint`` with port 0 replaced by one free now (Zenoh does not say which it bound)."""
+    head, _, port = endpoint.rpartition(":")
+    if port != "0":
+        return endpoint
+    _, _, host = head.partition("/")
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
+        probe.bind((host.strip("[]"), 0))
+        return f"{head}:{probe.getsockname()[1]}"

@@ -1,0 +1,89 @@
+"""The worker processes a world starts itself (``run --processes N``): spawned, watched, reaped.
+
+Each child is ``python -m cas_async worker --connect ENDPOINT --quiet`` with the
+run's key in its environment. Its stderr passes through to the world's (the last
+lines are kept, to say why it went), and its exit is reported at once, with the
+code and those lines: the world decides whether it is a loss (a worker that
+exits before its ``Bye``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import sys
+from collections.abc import Callable
+from typing import Final, final
+
+from .._swarm_key import SwarmKey
+from ._processes import WorkerLost, within
+
+__all__ = ["Children"]
+
+STDERR_LINES: Final = 12
+"""Lines of a child's stderr kept to say why it exited."""
+REAP_LIMIT: Final = 5.0
+"""Wall seconds a child has to exit once the run is over, before it is killed."""
+
+Exited = Callable[[int, int, str], None]
+"""``exited(pid, code, said)``: a child exited with ``code``; ``said``: its last words."""
+
+
+@final
+class Children:
+    """The child worker processes of one world (see the module docs).
+
+    Args:
+        exited: called on the event loop when a child exits (see :data:`Exited`).
+    """
+
+    def __init__(self, exited: Exited) -> None:
+        self._exited = exited
+        self._processes: list[asyncio.subprocess.Process] = []
+        self._watchers: list[asyncio.Task[None]] = []
+
+    async def spawn(self, count: int, endpoint: str, key: SwarmKey | None) -> None:
+        """Starts ``count`` workers that join the world listening at ``endpoint``."""
+        env = {**os.environ}
+        if key is not None:
+            env[SwarmKey.ENV_VAR] = key.secret.hex()
+        for _ in range(count):
+            child = await asyncio.create_subprocess_exec(
+                sys.executable, "-m", "cas_async", "worker", "--connect", endpoint, "--quiet",
+                env=env, stdin=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.PIPE,
+            )  # fmt: skip
+            self._processes.append(child)
+            self._watchers.append(asyncio.ensure_future(self._watch(child)))
+
+    def exited(self) -> set[int]:
+        """The process ids of the children that have exited."""
+        return {child.pid for child in self._processes if child.returncode is not None}
+
+    async def reap(self) -> None:
+        """Waits for every child to exit (``REAP_LIMIT`` each, together), kills the rest."""
+        await asyncio.gather(*(self._reap(child) for child in self._processes))
+        for watcher in self._watchers:
+            watcher.cancel()
+
+    async def _watch(self, child: asyncio.subprocess.Process) -> None:
+        """Passes the child's stderr on, keeps its last lines, reports its exit."""
+        lines: list[str] = []
+        assert child.stderr is not None
+        async for raw in child.stderr:
+            line = raw.decode(errors="replace")
+            sys.stderr.write(line)
+            lines.append(line.rstrip())
+            del lines[:-STDERR_LINES]
+        code = await child.wait()
+        said = "; ".join(line for line in lines[-3:] if line) or "nothing on stderr"
+        self._exited(child.pid, code, said)
+
+    @staticmethod
+    async def _reap(child: asyncio.subprocess.Process) -> None:
+        with contextlib.suppress(WorkerLost):
+            await within(child.wait(), REAP_LIMIT, "a worker to exit")
+        if child.returncode is None:
+            with contextlib.suppress(ProcessLookupError):
+                child.kill()
+            await child.wait()
