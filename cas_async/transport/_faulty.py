@@ -38,12 +38,15 @@ import math
 import random
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Final, final
+from typing import TYPE_CHECKING, Final, final
 
 from .._clock import Clock
 from .._errors import RobotStateError, UnknownRobotError
 from .._types import Address, RobotId
 from ._base import DatagramSink, Endpoint, Transport
+
+if TYPE_CHECKING:
+    from ._presence import PresenceSeal
 
 __all__ = ["Faults", "FaultyTransport"]
 
@@ -308,6 +311,10 @@ class FaultyTransport(Transport):
     @authenticated.setter
     def authenticated(self, value: bool) -> None:
         self.inner.authenticated = value
+
+    def require_proof(self, seal: PresenceSeal) -> None:
+        """As the inner transport: membership is the inner transport's."""
+        self.inner.require_proof(seal)
 
     @property
     def stats(self) -> dict[str, int]:
