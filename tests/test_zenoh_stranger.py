@@ -210,6 +210,31 @@ async def test_a_stranger_that_copies_a_token_keeps_a_gone_robot_looking_present
             await until(lambda: home.zid_of(2) is None, "robot 2 leaves with the copy")
 
 
+# -- what must keep working -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("keyed", [False, True], ids=["no key", "key"])
+async def test_a_robot_that_leaves_and_comes_back_in_another_session_is_placed_there(
+    keyed: bool,
+) -> None:
+    ns = namespace()
+    async with listener(ns) as (home, endpoint):
+        a = recorders(2)
+        wire = signed(home) if keyed else home
+        async with robot(1, a, wire) as robot_1:
+            zids = []
+            for _ in range(3):  # a restart: a new process, a new session
+                away = ZenohTransport(namespace=ns, connect=[endpoint])
+                async with robot(2, recorders(2), signed(away) if keyed else away):
+                    await until(lambda away=away: home.zid_of(2) == away.zid, "robot 2 comes")
+                    zids.append(away.zid)
+                    await ask(a[0], 2)
+                await until(lambda: home.zid_of(2) is None, "robot 2 leaves")
+            assert len(set(zids)) == 3
+            assert robot_1.dropped == {}
+        assert home.dropped == {}
+
+
 # -- floods ----------------------------------------------------------------------------------
 
 

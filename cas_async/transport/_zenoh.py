@@ -6,8 +6,8 @@ does not, opening the first robot does.
 One Zenoh session per transport, so per process: every robot of the process shares
 it. Keys, under the transport's ``namespace``::
 
-    {namespace}/alive/{robot}/{zid}             a robot's liveliness token
-    {namespace}/d/{zid}/{receiver}/{sender}     a datagram for ``receiver``
+    {namespace}/alive/{robot}/{zid}[/{stamp}/{proof}]   a robot's liveliness token
+    {namespace}/d/{zid}/{receiver}/{sender}             a datagram for ``receiver``
 
 ``zid`` is the Zenoh id of the session the robot lives in. A process declares one
 subscriber for the datagrams of its own session (``{namespace}/d/{zid}/*/*``) and one
@@ -161,6 +161,7 @@ class ZenohTransport(Transport):
         self._keys: ReceivedKeys | None = None
         self._local: dict[RobotId, ZenohEndpoint] = {}
         self._members = Members(namespace, self._moved, self._refused)
+        self._where = self._members.placed  # the same dict for good: read on every send
         self._followers: dict[RobotId, ZenohEndpoint] = {}
         self._waiters: list[asyncio.Future[None]] = []  # wait_for(): woken by every join
         # Robots whose token went, and when (loop time): their last datagrams may come
@@ -278,17 +279,17 @@ class ZenohTransport(Transport):
         """Attaches a robot and declares its liveliness token.
 
         Raises:
-            ConfigurationError: the id is not an int, is taken in this process or by a
-                live robot elsewhere, or the session cannot open.
+            ConfigurationError: the id is not an int, is taken in this process or (without
+                a swarm key) by a live robot elsewhere, or the session cannot open. With
+                a key the robot opens anyway: its token, newer, places it here (the
+                robot restarted; a stranger's copy of its old token must not keep it out).
         """
         if not isinstance(robot_id, int) or isinstance(robot_id, bool):
             raise ConfigurationError(f"a Zenoh robot id must be an int, got {robot_id!r}")
         if robot_id in self._local:
             raise ConfigurationError(f"robot {robot_id} is already attached to this ZenohTransport")
         await self._start()
-        # With a seal the robot may open anyway: its token is newer than any it had (a
-        # copy of an old one, or a frozen process's, must not keep it out).
-        elsewhere = self._members.placed.get(robot_id)
+        elsewhere = self._where.get(robot_id)
         if elsewhere is not None and elsewhere != self._zid and not self._members.sealed:
             if not self._local and not self._kept:
                 self._close_session()  # opened for this robot: it must not keep the process
@@ -328,7 +329,7 @@ class ZenohTransport(Transport):
 
     def zid_of(self, robot_id: RobotId) -> str | None:
         """The session robot ``robot_id`` lives in, while its token is alive."""
-        return self._members.placed.get(robot_id)
+        return self._where.get(robot_id)
 
     async def wait_for(self, robot_ids: Iterable[RobotId]) -> None:
         """Returns once every robot of ``robot_ids`` has a live token (is reachable).
@@ -336,14 +337,14 @@ class ZenohTransport(Transport):
         Bound it with a timeout: a robot that never comes makes it wait for ever.
         """
         missing = set(robot_ids)
-        while missing - self._members.placed.keys():
+        while missing - self._where.keys():
             waiter = asyncio.get_running_loop().create_future()
             self._waiters.append(waiter)
             await waiter
 
     def members(self) -> list[RobotId]:
         """Every robot with a live token (this process's included)."""
-        return list(self._members.placed)
+        return list(self._where)
 
     def require_proof(self, seal: PresenceSeal) -> None:
         """Signs this process's tokens with ``seal``, and believes only tokens it verifies.
@@ -375,7 +376,7 @@ class ZenohTransport(Transport):
             UnknownRobotError: no live token speaks for ``receiver``.
             RobotStateError: the session is closed.
         """
-        zid = self._members.placed.get(receiver)
+        zid = self._where.get(receiver)
         if zid is None:
             raise UnknownRobotError(
                 f"robot {sender}: robot {receiver} is not on this Zenoh swarm "
@@ -399,7 +400,7 @@ class ZenohTransport(Transport):
     # -- what arrives ----------------------------------------------------------------
 
     def _drain(self, entries: list[Entry]) -> None:
-        local, where = self._local, self._members.placed
+        local, where = self._local, self._where
         pairs = {} if self._keys is None else self._keys.pairs
         received = 0
         for kind, what, payload in entries:
@@ -440,7 +441,7 @@ class ZenohTransport(Transport):
         pair = pair_of(key) if keys is None else keys.read(key)
         if pair is None:
             self._refused("bad_key", f"datagram under {key!r}, which names no two robots", None)
-        elif keys is not None and pair[0] in self._local and pair[1] in self._members.placed:
+        elif keys is not None and pair[0] in self._local and pair[1] in self._where:
             keys.declare(key, pair)
         return pair
 
@@ -489,5 +490,5 @@ class ZenohTransport(Transport):
         where = f"session {self._zid}" if self._zid else "not open"
         return (
             f"ZenohTransport(namespace={self.namespace!r}, {len(self._local)} robots here, "
-            f"{len(self._members.placed)} in the swarm, {where})"
+            f"{len(self._where)} in the swarm, {where})"
         )

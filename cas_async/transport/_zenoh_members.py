@@ -32,6 +32,39 @@ original goes: the copy then keeps it).
 Refused claims are reported through ``on_refused`` (the transport counts them in
 its robots' drops, as ``transport.<reason>``); malformed token keys as
 ``token_malformed``. The claims kept per robot are bounded (:data:`MAX_CLAIMS`).
+
+What a stranger can do: a Zenoh session that reaches the swarm's (Zenoh lets it
+declare tokens, subscribe and publish under any key) and has no swarm key.
+
+Without a swarm key, it cannot move or remove a placed robot. It can:
+
+* read every token (one ``liveliness().get``) and every datagram;
+* place robots that do not exist (a token under a new id: robots hear it join);
+* claim a robot before the robot's own token is heard: the robot's process then
+  refuses to open it ("already on the Zenoh swarm"), other processes place it at
+  the stranger's session; and a claim it holds takes a robot's place when the
+  robot leaves;
+* speak for any placed robot: a datagram under a pair's key is the sender's.
+
+With a swarm key (``AuthenticatedTransport`` over the transport), it can neither place,
+move nor remove a robot: a token without a proof, or whose proof does not verify (made
+up, signed with another key, or a real proof on another robot, session or stamp), is
+refused; a copy of a live token is merged into it by Zenoh; a copy of one that went is
+refused by every process that saw it go. Nor can it speak for a robot (its datagrams
+do not verify). It can still:
+
+* read every token and every datagram (nothing is encrypted);
+* hold a copy of a live robot's token: when the robot closes or its process dies,
+  the robot then looks present, at its dead session, until the copy goes or the
+  robot comes back (a newer token); what is sent to it meanwhile is lost, requests
+  to it time out. A copy of the token of a robot that went does the same in a
+  process that did not see it go (one started since);
+* flood: each token and datagram is refused and counted, at the cost of an HMAC.
+
+Every key holder may claim any robot (the newest claim wins). Stamps are wall-clock
+microseconds, as the first counters of authenticated datagrams are: a robot restarted
+on a host whose clock is behind the one it left is refused (``token_replayed``) by
+processes that saw it go, until that clock passes its old stamp.
 """
 
 from __future__ import annotations
@@ -104,7 +137,7 @@ class Members:
         self.zid = ""
         """This process's session (its tokens' echo is ignored: it knows its robots)."""
         self.placed: dict[RobotId, str] = {}
-        """Every robot placed, and its session's zid."""
+        """Every robot placed, and its session's zid (one dict for good: never replaced)."""
         self._placed_by: dict[RobotId, Claim] = {}
         self._claims: dict[RobotId, dict[str, Claim]] = {}  # other sessions', by key, in order
         self._local: dict[RobotId, Claim] = {}
