@@ -38,14 +38,10 @@ another subscriber); a datagram from a robot no token speaks for is refused as
 ``unknown_source``, one whose header claims another robot than its key as
 ``spoofed_sender``.
 
-Zenoh itself lets any session that reaches this one declare tokens, subscribe and
-publish under any key. Without a swarm key a stranger can place robots that do not
-exist and speak for robots that do (it cannot move or remove a placed robot); with one
-(:class:`~cas_async.transport._authenticated.AuthenticatedTransport` on top: tokens
-are then signed) it can do neither. What holds exactly, and what a stranger can still
-do, is in :mod:`~cas_async.transport._zenoh_members`. Refused tokens and malformed keys
-are counted in :attr:`~ZenohTransport.dropped` and in a robot's drops
-(``transport.<reason>``; the robot named if it lives here, else this process's first).
+Zenoh lets any session that reaches this one declare tokens and publish under any key:
+what a stranger can still do, without a swarm key and with one (tokens are then
+signed), is in :mod:`~cas_async.transport._zenoh_members`. Refusals are counted in
+:attr:`~ZenohTransport.dropped` and in a robot's drops (``transport.<reason>``).
 
 Delivery is reliable: puts use ``CongestionControl.BLOCK``, so a full queue makes
 the sender wait instead of dropping (Zenoh's default, ``DROP``, lost 22% of a burst
@@ -478,7 +474,10 @@ class ZenohTransport(Transport):
                     follower.sink.robot_joined(robot_id)
 
     def _refused(self, reason: str, detail: str, robot_id: RobotId | None) -> None:
-        """Counts a refusal here and in a robot's drops: the one it names, else the first."""
+        """Counts a refusal here and in a robot's drops (so in a run's results).
+
+        The robot it names counts it if it lives here, else this process's first robot.
+        """
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
         endpoint = self._local.get(robot_id) if robot_id is not None else None
         if endpoint is None:
