@@ -59,6 +59,7 @@ from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .._swarm_key import SwarmKey
 from .._types import Address, RobotId
 from ._base import DatagramSink, Endpoint, Transport
+from ._presence import PresenceSeal
 
 __all__ = ["AuthenticatedTransport"]
 
@@ -85,11 +86,18 @@ class AuthenticatedTransport(Transport):
     """Signs what robots send through ``inner`` and refuses what does not verify.
 
     Args:
-        inner: the transport that moves the signed datagrams; marked ``authenticated``.
+        inner: the transport that moves the signed datagrams; marked ``authenticated``,
+            and handed a :class:`~cas_async.transport._presence.PresenceSeal` (its
+            :meth:`~cas_async.transport._base.Transport.require_proof`): where it learns
+            robots' presence from the network, only signed presence counts.
         key: the key every robot of the swarm holds.
         counter_start: called once per opened endpoint for its first counter
             (microseconds since the epoch when omitted); for tests.
         max_senders: senders whose replay window each endpoint keeps.
+
+    Raises:
+        ConfigurationError: ``key`` is no SwarmKey, ``max_senders`` is below 1, or
+            ``inner`` has robots attached already (their presence is not signed).
     """
 
     authenticated = True
@@ -119,6 +127,7 @@ class AuthenticatedTransport(Transport):
             )
         if max_senders < 1:
             raise ConfigurationError(f"max_senders must be at least 1, got {max_senders}")
+        inner.require_proof(PresenceSeal(key))
         inner.authenticated = True
         self.inner = inner
         self.supports_virtual_time = inner.supports_virtual_time

@@ -20,6 +20,7 @@ from .._types import Address, RobotId
 if TYPE_CHECKING:
     from .._codec import Codec
     from .._wire_codec import WireCodec
+    from ._presence import PresenceSeal
 
 __all__ = ["DatagramSink", "Endpoint", "LossCounter", "Transport", "drop_socket_error"]
 
@@ -118,6 +119,20 @@ class Transport(ABC):
     """Whether an authenticating wrapper signs and checks every datagram of this
     transport (set by the wrapper); a UDP transport binding beyond loopback without
     it warns."""
+
+    def require_proof(self, seal: PresenceSeal) -> None:
+        """From now on, robots' presence learnt from the network counts only if ``seal`` proves it.
+
+        Called by an authenticating wrapper (with a swarm key) before robots open. A
+        transport that learns where robots live from what others announce (Zenoh's
+        liveliness tokens) signs its own robots' announcements with ``seal`` and
+        believes only those it verifies; transports whose membership nobody else can
+        announce (in one process, or a fixed directory) have nothing to prove.
+
+        Raises:
+            ConfigurationError: robots are attached already.
+        """
+        return  # default: nothing announced, nothing to prove
 
     @abstractmethod
     async def open(self, robot_id: RobotId, sink: DatagramSink) -> Endpoint:

@@ -40,12 +40,15 @@ import math
 import random
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Final, final
+from typing import TYPE_CHECKING, Final, final
 
 from .._clock import Clock
 from .._errors import RobotStateError, UnknownRobotError
 from .._types import Address, RobotId
 from ._base import DatagramSink, Endpoint, Transport
+
+if TYPE_CHECKING:
+    from ._presence import PresenceSeal
 
 __all__ = ["Faults", "FaultyTransport"]
 
@@ -323,6 +326,10 @@ class FaultyTransport(Transport):
         if rng is None:
             rng = self._rngs[robot_id] = random.Random(f"{self.seed}/{robot_id}")
         return rng
+
+    def require_proof(self, seal: PresenceSeal) -> None:
+        """As the inner transport: membership is the inner transport's."""
+        self.inner.require_proof(seal)
 
     @property
     def stats(self) -> dict[str, int]:

@@ -6,8 +6,8 @@ does not, opening the first robot does.
 One Zenoh session per transport, so per process: every robot of the process shares
 it. Keys, under the transport's ``namespace``::
 
-    {namespace}/alive/{robot}/{zid}             a robot's liveliness token
-    {namespace}/d/{zid}/{receiver}/{sender}     a datagram for ``receiver``
+    {namespace}/alive/{robot}/{zid}[/{stamp}/{proof}]   a robot's liveliness token
+    {namespace}/d/{zid}/{receiver}/{sender}             a datagram for ``receiver``
 
 ``zid`` is the Zenoh id of the session the robot lives in. A process declares one
 subscriber for the datagrams of its own session (``{namespace}/d/{zid}/*/*``) and one
@@ -26,18 +26,22 @@ costs Zenoh's network thread 3-4 µs a sample); see :mod:`~cas_async.transport._
 Membership: a robot's token appears when it opens its endpoint and disappears when it
 closes, when its process dies (about 2 ms after SIGKILL on loopback) or, for a frozen
 process, when Zenoh's lease expires (about 10 s). Robots that follow membership hear
-``robot_joined``/``robot_left`` (``Layer.knows``, ``on_robot_left``).
+``robot_joined``/``robot_left`` (``Layer.knows``, ``on_robot_left``). A token never
+moves or removes a robot already placed: a second one for it, from another session, is
+refused and counted (``token_conflict``), and only the going of the token the robot is
+placed by removes it (:mod:`~cas_async.transport._zenoh_members` has the rules).
 
 The sender of a datagram is the robot named in the key it was published under, and
 only while that robot's token is alive (and for :data:`LAST_WORDS` seconds after it
 went: a robot's last datagrams may arrive after its token's end, as they come through
 another subscriber); a datagram from a robot no token speaks for is refused as
 ``unknown_source``, one whose header claims another robot than its key as
-``spoofed_sender``. Zenoh itself does not stop a session from publishing under any
-key: on a network you do not control, restrict who may publish with Zenoh's access
-control (by interface, certificate or user) and give the swarm a key
-(:class:`~cas_async.transport._authenticated.AuthenticatedTransport` works on top of
-this transport unchanged).
+``spoofed_sender``.
+
+Zenoh lets any session that reaches this one declare tokens and publish under any key:
+what a stranger can still do, without a swarm key and with one (tokens are then
+signed), is in :mod:`~cas_async.transport._zenoh_members`. Refusals are counted in
+:attr:`~ZenohTransport.dropped` and in a robot's drops (``transport.<reason>``).
 
 Delivery is reliable: puts use ``CongestionControl.BLOCK``, so a full queue makes
 the sender wait instead of dropping (Zenoh's default, ``DROP``, lost 22% of a burst
@@ -66,6 +70,7 @@ from .._codec import DEFAULT_MAX_DATAGRAM
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .._types import RobotId
 from ._base import DatagramSink, Endpoint, Transport
+from ._presence import PresenceSeal
 from ._thread_inbox import ThreadInbox
 from ._zenoh_config import LOOPBACK_LISTEN, Mode, import_zenoh, loopback_config, warn_if_exposed
 from ._zenoh_endpoint import ZenohEndpoint
@@ -79,6 +84,7 @@ from ._zenoh_keys import (
     pair_of,
     subscribe,
 )
+from ._zenoh_members import Members
 
 if TYPE_CHECKING:
     import zenoh
@@ -150,7 +156,8 @@ class ZenohTransport(Transport):
         self._publishers: Publishers | None = None
         self._keys: ReceivedKeys | None = None
         self._local: dict[RobotId, ZenohEndpoint] = {}
-        self._where: dict[RobotId, str] = {}  # every robot with a live token -> its zid
+        self._members = Members(namespace, self._moved, self._refused)
+        self._where = self._members.placed  # the same dict for good: read on every send
         self._followers: dict[RobotId, ZenohEndpoint] = {}
         self._waiters: list[asyncio.Future[None]] = []  # wait_for(): woken by every join
         # Robots whose token went, and when (loop time): their last datagrams may come
@@ -163,7 +170,7 @@ class ZenohTransport(Transport):
         self.received = 0
         """Datagrams from other processes handed to a robot of this one."""
         self.dropped: dict[str, int] = {}
-        """What arrived and could not be handed to a robot, by reason."""
+        """What arrived and could not be handed to a robot, and tokens refused, by reason."""
 
     # -- the session -----------------------------------------------------------------
 
@@ -225,7 +232,7 @@ class ZenohTransport(Transport):
         loop = asyncio.get_running_loop()
         with self._lock:
             self._session = session
-            self._zid = str(session.zid())
+            self._zid = self._members.zid = str(session.zid())
             self._inbox = inbox = ThreadInbox(loop, self._drain)
             self._publishers = Publishers(zenoh, session, self.namespace)
             self._keys = ReceivedKeys(session)
@@ -247,7 +254,7 @@ class ZenohTransport(Transport):
             session, self._session = self._session, None
             subscribers, self._subscribers = self._subscribers, []
             self._publishers = self._keys = None  # closing the session undeclares their keys
-            self._where.clear()
+            self._members.clear()
             self._zid = ""
         for subscriber in subscribers:
             with contextlib.suppress(Exception):
@@ -268,8 +275,10 @@ class ZenohTransport(Transport):
         """Attaches a robot and declares its liveliness token.
 
         Raises:
-            ConfigurationError: the id is not an int, is taken in this process or by a
-                live robot elsewhere, or the session cannot open.
+            ConfigurationError: the id is not an int, is taken in this process or (without
+                a swarm key) by a live robot elsewhere, or the session cannot open. With
+                a key the robot opens anyway: its token, newer, places it here (the
+                robot restarted; a stranger's copy of its old token must not keep it out).
         """
         if not isinstance(robot_id, int) or isinstance(robot_id, bool):
             raise ConfigurationError(f"a Zenoh robot id must be an int, got {robot_id!r}")
@@ -277,18 +286,20 @@ class ZenohTransport(Transport):
             raise ConfigurationError(f"robot {robot_id} is already attached to this ZenohTransport")
         await self._start()
         elsewhere = self._where.get(robot_id)
-        if elsewhere is not None and elsewhere != self._zid:
+        if elsewhere is not None and elsewhere != self._zid and not self._members.sealed:
             if not self._local and not self._kept:
                 self._close_session()  # opened for this robot: it must not keep the process
             raise ConfigurationError(
                 f"robot {robot_id} is already on the Zenoh swarm {self.namespace!r} "
                 f"(session {elsewhere})"
             )
-        token = self._session.liveliness().declare_token(
-            f"{self.namespace}/alive/{robot_id}/{self._zid}"
-        )
+        key = self._members.attach(robot_id)
+        try:
+            token = self._session.liveliness().declare_token(key)
+        except BaseException:
+            self._members.detach(robot_id)
+            raise
         endpoint = self._local[robot_id] = ZenohEndpoint(self, robot_id, sink, token)
-        self._joined(robot_id, self._zid)
         return endpoint
 
     def detach(self, endpoint: ZenohEndpoint, token: Any) -> None:
@@ -298,10 +309,10 @@ class ZenohTransport(Transport):
         if self._local.get(robot_id) is endpoint:
             del self._local[robot_id]
             if self._publishers is not None:
-                self._publishers.forget_sender(robot_id)  # _left() forgets the rest
+                self._publishers.forget_sender(robot_id)  # _moved() forgets the rest
             with contextlib.suppress(Exception):  # the session may be closed already
                 token.undeclare()
-            self._left(robot_id, self._zid)
+            self._members.detach(robot_id)
         if not self._local and not self._kept:
             self._close_session()
 
@@ -330,6 +341,22 @@ class ZenohTransport(Transport):
     def members(self) -> list[RobotId]:
         """Every robot with a live token (this process's included)."""
         return list(self._where)
+
+    def require_proof(self, seal: PresenceSeal) -> None:
+        """Signs this process's tokens with ``seal``, and believes only tokens it verifies.
+
+        Called by :class:`~cas_async.transport._authenticated.AuthenticatedTransport`
+        when it wraps this transport; tokens heard already are judged again.
+
+        Raises:
+            ConfigurationError: robots are attached already (their tokens are unsigned).
+        """
+        if self._local:
+            raise ConfigurationError(
+                f"wrap the ZenohTransport in AuthenticatedTransport before opening robots: "
+                f"robots {sorted(self._local)} have unsigned tokens already"
+            )
+        self._members.require(seal)
 
     def is_local(self, robot_id: RobotId) -> bool:
         """Whether robot ``robot_id`` is attached to this transport (this process)."""
@@ -381,12 +408,15 @@ class ZenohTransport(Transport):
                 received += 1
             elif kind == LOCAL:
                 receiver, sender = what
+            elif kind == APPEARED:
+                self._members.appeared(what)
+                continue
             else:
-                self._token_event(what, appeared=kind == APPEARED)
+                self._members.went(what)
                 continue
             endpoint = local.get(receiver)
             if endpoint is None:
-                self._drop("no_receiver", f"robot {receiver}")
+                self.dropped["no_receiver"] = self.dropped.get("no_receiver", 0) + 1
                 continue
             known = sender if sender in where or self._lately_here(sender) else None
             try:
@@ -406,7 +436,7 @@ class ZenohTransport(Transport):
         keys = self._keys
         pair = pair_of(key) if keys is None else keys.read(key)
         if pair is None:
-            self._drop("bad_key", key)
+            self._refused("bad_key", f"datagram under {key!r}, which names no two robots", None)
         elif keys is not None and pair[0] in self._local and pair[1] in self._where:
             keys.declare(key, pair)
         return pair
@@ -421,30 +451,19 @@ class ZenohTransport(Transport):
         del self._departed[robot_id]
         return False
 
-    def _token_event(self, key: str, *, appeared: bool) -> None:
-        *_, robot, zid = key.rsplit("/", 2)
-        try:
-            robot_id = int(robot)
-        except ValueError:
-            self._drop("bad_key", key)
-            return
-        if zid == self._zid:  # the echo of our own robots: open() and detach() told already
-            return
-        if appeared:
-            self._joined(robot_id, zid)
-        else:
-            self._left(robot_id, zid)
-
-    def _joined(self, robot_id: RobotId, zid: str) -> None:
-        before = self._where.get(robot_id)
-        if before == zid:
-            return
-        self._where[robot_id] = zid
-        self._departed.pop(robot_id, None)
+    def _moved(self, robot_id: RobotId, before: str | None, after: str | None) -> None:
+        """Robot ``robot_id`` joined (``before`` is ``None``), moved, or left (``after``)."""
         if self._publishers is not None and self._keys is not None:
             self._keys.forget(robot_id)  # keys naming it are weighed for declaring again
             if before is not None:
-                self._publishers.forget_receiver(robot_id)  # it moved to another session
+                self._publishers.forget_receiver(robot_id)  # it moved or left
+        if after is None:
+            with contextlib.suppress(RuntimeError):  # no loop: the session is closing
+                self._departed[robot_id] = asyncio.get_running_loop().time()
+            for follower in list(self._followers.values()):
+                follower.sink.robot_left(robot_id)
+            return
+        self._departed.pop(robot_id, None)
         waiters, self._waiters = self._waiters, []
         for waiter in waiters:
             if not waiter.done():
@@ -454,20 +473,17 @@ class ZenohTransport(Transport):
                 if follower.robot_id != robot_id:
                     follower.sink.robot_joined(robot_id)
 
-    def _left(self, robot_id: RobotId, zid: str) -> None:
-        if self._where.get(robot_id) != zid:  # gone already, or alive in another session
-            return
-        del self._where[robot_id]
-        if self._publishers is not None and self._keys is not None:
-            self._publishers.forget_receiver(robot_id)
-            self._keys.forget(robot_id)
-        with contextlib.suppress(RuntimeError):  # no loop: the session is closing
-            self._departed[robot_id] = asyncio.get_running_loop().time()
-        for follower in list(self._followers.values()):
-            follower.sink.robot_left(robot_id)
+    def _refused(self, reason: str, detail: str, robot_id: RobotId | None) -> None:
+        """Counts a refusal here and in a robot's drops (so in a run's results).
 
-    def _drop(self, reason: str, detail: str) -> None:
+        The robot it names counts it if it lives here, else this process's first robot.
+        """
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
+        endpoint = self._local.get(robot_id) if robot_id is not None else None
+        if endpoint is None:
+            endpoint = next(iter(self._local.values()), None)
+        if endpoint is not None:
+            endpoint.sink.transport_dropped(reason, detail)
 
     def __repr__(self) -> str:
         where = f"session {self._zid}" if self._zid else "not open"

@@ -74,7 +74,7 @@ def subscribe(
 
     The datagrams of the session (``{namespace}/d/{zid}/*/*``; other shapes are no
     datagram keys) come on the subscriber's own thread; every robot's token
-    (``{namespace}/alive/*/*``, those alive already included) on Zenoh's network
+    (``{namespace}/alive/**``, those alive already included) on Zenoh's network
     thread (``indirect=False``), so a token is handed over before any datagram its
     robot sent after declaring it.
     """
@@ -87,7 +87,7 @@ def subscribe(
     put_kind = zenoh.SampleKind.PUT
     subscribers.append(
         session.liveliness().declare_subscriber(
-            f"{namespace}/alive/*/*",
+            f"{namespace}/alive/**",
             zenoh.handlers.Callback(
                 lambda sample: put(
                     (APPEARED if sample.kind == put_kind else GONE, str(sample.key_expr), b"")
