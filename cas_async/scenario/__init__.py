@@ -44,8 +44,9 @@ from ._plots import write_plots
 from ._progress import Progress
 from ._report import results_dict, statistics, summary_table, write_results
 from ._results import RunProgress, RunResult, RunStatus
+from ._run_scenario import run_scenario
 from ._run_transport import check_key
-from ._runner import ScenarioRun, run_scenario
+from ._runner import ScenarioRun
 from ._scene import Disc, Polyline, Rect, Scene, Shape, Spot
 from ._sweep import run_sweep, sweep
 from ._sweep_grid import SweepAxis, SweepPlan, parse_vary, plan_sweep

@@ -1,9 +1,9 @@
 """Running a loaded scenario: clock, transport, Environment, the app's swarm, and measuring it.
 
-``run_scenario`` is the whole run as one coroutine, so it can be embedded in any
-asyncio program; :class:`ScenarioRun` takes the same steps one by one, for a
-caller that acts between them (the CLI, which adds argument parsing, signals
-and output files, writes the results before the robots stop).
+:class:`ScenarioRun` takes the steps of a run one by one, for a caller that acts
+between them (the CLI, which adds argument parsing, signals and output files,
+writes the results before the robots stop); ``run_scenario`` (:mod:`._run_scenario`)
+is the whole run as one coroutine.
 The run ends when the mission's objective is complete (see
 :mod:`~cas_async.scenario._objective`: the Fire Brigade's is a number of items
 retired), when ``run.max_time`` simulated seconds have passed, when ``stop`` is
@@ -18,14 +18,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable, Coroutine
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TextIO, final
+from typing import TextIO, final
 
 import numpy as np
 import numpy.typing as npt
 
-from .._clock import Clock
 from .._errors import ConfigurationError, LayerError
 from .._swarm import Swarm
 from .._swarm_key import SwarmKey
@@ -39,17 +38,18 @@ from ._layers import check_built
 from ._listener import Listeners, RunListener
 from ._loader import Scenario
 from ._measure import PositionMeasures, mark_failed, measure_end
-from ._objective import CallbackWatch, Items, Objective, not_distributable
+from ._objective import CallbackWatch, Objective, not_distributable, objective_of
 from ._observer import Observer, mirror_of
 from ._progress import Progress
 from ._results import RunProgress, RunResult, RunStatus
 from ._run_transport import run_transport
+from ._sampled import sampled_until_end
 from ._trace import Trace, TraceCsv
 from ._windowed import WindowedRun
 from ._windows import Held
 from ._world import World
 
-__all__ = ["ScenarioRun", "run_scenario"]
+__all__ = ["ScenarioRun"]
 
 
 @final
@@ -123,7 +123,7 @@ class ScenarioRun:
             check_built(getattr(scenario.app, "stack", ()), scenario.layers, mission.robots)
         except ConfigurationError as error:
             raise ConfigurationError(f"{scenario.path}: {error}") from None
-        self._objective = objective = _objective_of(mission, scenario)
+        self._objective = objective = objective_of(mission, scenario)
         if world is not None and not objective.distributable:
             raise ConfigurationError(not_distributable(scenario.path, scenario.app.name, objective))
         self._windowed: WindowedRun | None = None
@@ -309,7 +309,7 @@ class ScenarioRun:
                 )
                 await world.finish()  # the workers stop, and send their counts
                 return self._end(status, failure)
-            status, failure = await _until_done(
+            status, failure = await sampled_until_end(
                 self._swarm.run() if world is None or observer is None else world.follow(observer),
                 self._clock,
                 self._scenario.run.max_time,
@@ -492,96 +492,3 @@ class ScenarioRun:
         if self._progress is not None:
             self._progress.close(final=final)
             self._progress = None
-
-
-async def run_scenario(
-    scenario: Scenario,
-    *,
-    progress_to: TextIO | None = None,
-    stop: asyncio.Event | None = None,
-    observe: Callable[[Environment], None] | None = None,
-    wall_clock: Callable[[], float] = time.perf_counter,
-    key: SwarmKey | None = None,
-) -> tuple[RunResult, Trace]:
-    """Runs ``scenario`` to its end and returns what it measured and the position trace.
-
-    Run it on the loop the scenario needs: ``cas_async.run(run_scenario(s),
-    virtual=s.run.virtual)``. While the swarm runs, the garbage collector's
-    youngest generation is sized to the swarm (see :mod:`.gc_policy`): the
-    process-wide threshold is raised for thousands of robots, then restored.
-    The arguments are :class:`ScenarioRun`'s (all but ``trace_csv``: the trace is
-    returned), which takes the same steps one by one.
-    """
-    run = ScenarioRun(
-        scenario,
-        key=key,
-        progress_to=progress_to,
-        stop=stop,
-        observe=observe,
-        wall_clock=wall_clock,
-    )
-    async with run:
-        await run.until_done()
-    return run.result, run.trace
-
-
-async def _until_done(
-    running: Coroutine[Any, Any, None],
-    clock: Clock,
-    max_time: float,
-    interval: float,
-    complete: asyncio.Event,
-    stop: asyncio.Event | None,
-    sample: Callable[[float], None],
-    hold: Callable[[float], Coroutine[Any, Any, None]],
-) -> tuple[RunStatus, BaseException | None]:
-    """Samples every ``interval`` simulated seconds, awaiting ``hold`` after each, until an end.
-
-    Returns which end; the exception is that of a failed run (a layer's, or the sampling's).
-    """
-
-    async def sampling() -> None:
-        tick = 0
-        while True:
-            await clock.sleep_until(tick * interval)  # absolute instants: no drift
-            sample(now := clock.now())
-            await hold(now)
-            tick += 1
-
-    waits = {
-        "complete": asyncio.ensure_future(complete.wait()),
-        "timeout": asyncio.ensure_future(clock.sleep_until(max_time)),
-        "swarm": asyncio.ensure_future(running),
-        "sampling": asyncio.ensure_future(sampling()),
-    }
-    if stop is not None:
-        waits["stop"] = asyncio.ensure_future(stop.wait())
-    try:
-        done, _ = await asyncio.wait(waits.values(), return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        for task in waits.values():
-            task.cancel()
-        for task in waits.values():
-            # A task's own failure is read below, from the task: not raised here.
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await task
-    if waits["complete"] in done:
-        return RunStatus.COMPLETED, None
-    if waits["swarm"] in done or waits["sampling"] in done:
-        error = (waits["swarm"] if waits["swarm"] in done else waits["sampling"]).exception()
-        return RunStatus.FAILED, error or RuntimeError(
-            "every robot stopped (each layer's termination condition held) "
-            "before the mission was complete"
-        )
-    if "stop" in waits and waits["stop"] in done:
-        return RunStatus.INTERRUPTED, None
-    return RunStatus.TIMED_OUT, None
-
-
-def _objective_of(mission: Mission, scenario: Scenario) -> Objective:
-    """The mission's objective: its own, or retiring its ``target`` items."""
-    if mission.objective is not None:
-        return mission.objective
-    if mission.target is None:  # Mission refuses neither, but it is not frozen
-        raise ConfigurationError(f"{scenario.app.name}: the mission has no target nor objective")
-    return Items(mission.target, getattr(scenario.app, "item_name", "item"))

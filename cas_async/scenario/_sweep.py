@@ -40,7 +40,7 @@ from typing import Final, TextIO, final
 from .._runner import run
 from ._loader import load_scenario
 from ._results import RunStatus
-from ._runner import run_scenario
+from ._run_scenario import run_scenario
 from ._sweep_grid import SweepAxis, SweepPlan, plan_sweep
 from ._sweep_plots import write_box_plots
 from ._sweep_report import format_number, write_sweep_files
