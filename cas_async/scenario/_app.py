@@ -32,6 +32,7 @@ import numpy.typing as npt
 from .._channel import DEFAULT_QUEUE_LIMIT
 from .._clock import Clock
 from .._codec import DEFAULT_MAX_DATAGRAM
+from .._errors import ConfigurationError
 from .._layer import Layer
 from .._message import Message
 from .._robot import Robot
@@ -39,7 +40,7 @@ from .._supervision import RestartPolicy
 from .._types import RobotId
 from ..sim._environment import Environment
 from ..transport._base import Transport
-from ._objective import Objective
+from ._objective import Items, Objective
 from ._scene import Scene
 
 __all__ = [
@@ -309,3 +310,16 @@ def app_problems(app: object) -> list[str]:
         elif member in ("name", "item_name") and not isinstance(value, str):
             problems.append(f"has {member} = {value!r}, which is not text; expected {what}")
     return problems
+
+
+def objective_of(mission: Mission, app_name: str, item_name: str) -> Objective:
+    """The mission's objective: its own, or retiring its ``target`` items.
+
+    Raises:
+        ConfigurationError: the mission has neither.
+    """
+    if mission.objective is not None:
+        return mission.objective
+    if mission.target is None:  # Mission refuses neither, but it is not frozen
+        raise ConfigurationError(f"{app_name}: the mission has no target nor objective")
+    return Items(mission.target, item_name)

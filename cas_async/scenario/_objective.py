@@ -30,19 +30,14 @@ from abc import ABC, abstractmethod
 from collections import Counter
 from collections.abc import Callable, Collection
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple, Protocol, final
+from typing import NamedTuple, Protocol, final
 
 from .._clock import Clock
-from .._errors import ConfigurationError
 from .._types import RobotId
 from ..sim._environment import Environment
 from ..sim._items import ItemEvent, ItemEventKind
 from ._results import RunResult
 from ._trace import Trace
-
-if TYPE_CHECKING:
-    from ._app import Mission
-    from ._loader import Scenario
 
 __all__ = [
     "CallbackWatch",
@@ -51,7 +46,6 @@ __all__ = [
     "Tally",
     "Watch",
     "not_distributable",
-    "objective_of",
 ]
 
 
@@ -300,12 +294,3 @@ def not_distributable(scenario: Path, app: str, objective: Objective) -> str:
         f"never the robots' layers, may run there: then set distributable = True on {name}. "
         "Otherwise run without --processes."
     )
-
-
-def objective_of(mission: Mission, scenario: Scenario) -> Objective:
-    """The mission's objective: its own, or retiring its ``target`` items."""
-    if mission.objective is not None:
-        return mission.objective
-    if mission.target is None:  # Mission refuses neither, but it is not frozen
-        raise ConfigurationError(f"{scenario.app.name}: the mission has no target nor objective")
-    return Items(mission.target, getattr(scenario.app, "item_name", "item"))

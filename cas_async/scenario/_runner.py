@@ -32,13 +32,13 @@ from .._virtual_loop import VirtualTimeLoop
 from ..sim._environment import Environment
 from ..transport._authenticated import AuthenticatedTransport
 from ..transport._faulty import FaultyTransport
-from ._app import Mission
+from ._app import Mission, objective_of
 from ._gc_policy import young_generation_for
 from ._layers import check_built
 from ._listener import Listeners, RunListener
 from ._loader import Scenario
 from ._measure import PositionMeasures, mark_failed, measure_end
-from ._objective import CallbackWatch, Objective, not_distributable, objective_of
+from ._objective import CallbackWatch, Objective, not_distributable
 from ._observer import Observer, mirror_of
 from ._progress import Progress
 from ._results import RunProgress, RunResult, RunStatus
@@ -123,7 +123,9 @@ class ScenarioRun:
             check_built(getattr(scenario.app, "stack", ()), scenario.layers, mission.robots)
         except ConfigurationError as error:
             raise ConfigurationError(f"{scenario.path}: {error}") from None
-        self._objective = objective = objective_of(mission, scenario)
+        self._objective = objective = objective_of(
+            mission, scenario.app.name, getattr(scenario.app, "item_name", "item")
+        )
         if world is not None and not objective.distributable:
             raise ConfigurationError(not_distributable(scenario.path, scenario.app.name, objective))
         self._windowed: WindowedRun | None = None
