@@ -8,9 +8,8 @@ per layer, held by the robot and reached through the layer's one attribute ``_ca
   stamped, counted and carried through every intermediate layer *when sent*:
   each intermediate layer forwards it (and counts it) without its hooks being
   called, so a layer busy in a long hook never holds up messages passing by;
-* **external messages** go out through the robot's
-  :class:`~cas_async._outbox.Outbox`; those the robot's
-  :class:`~cas_async._reception.Reception` accepts arrive in :meth:`accept_external`;
+* **external messages** go out through the robot's :class:`~cas_async._outbox.Outbox`;
+  those its :class:`~cas_async._reception.Reception` accepts arrive in :meth:`accept_external`;
 * **requests**: a reply is matched to its waiting request as it arrives, before
   the inbox, so a layer blocked on ``await request(...)`` still gets its answer;
   and a layer that overrides ``get_msg_reply`` answers requests *on arrival*,
@@ -22,8 +21,8 @@ per layer, held by the robot and reached through the layer's one attribute ``_ca
   ``store_intra_msg``), robots that joined or left (``on_robot_joined``,
   ``on_robot_left``), timers that went off (``on_timer``), and ``inner_process()``
   again; until the robot cancels the task;
-* **back-pressure** (:mod:`cas_async._backpressure`): after a hook whose sends
-  filled another layer's inbox, this layer waits until that inbox has drained;
+* **back-pressure** (:mod:`cas_async._backpressure`): after a hook whose sends filled
+  another layer's inbox, this layer waits until that inbox has drained;
 * **timers** (:mod:`cas_async._timers`), disarmed when the robot stops.
 """
 
@@ -38,12 +37,7 @@ from typing import Final, TypeVar, final
 from ._backpressure import Flow
 from ._channel import Channel
 from ._counters import LayerCounters
-from ._errors import (
-    RequestTimeout,
-    RobotGone,
-    RobotStateError,
-    RuleViolation,
-)
+from ._errors import RequestTimeout, RobotGone, RobotStateError, RuleViolation
 from ._hooks import Hooks, Overrides, RobotHandle
 from ._logs import DropLog, PrefixLogger
 from ._message import Message, MsgType
