@@ -634,14 +634,17 @@ class Environment:
         if clock is not None and not clock.is_virtual:
             t = max(t, clock.now())
         refused = self._refusal(item, giver, receiver, t, reach)
+        giver_here = self._robot(giver).local
         if refused is None:
             self._items.arrive(item, giver, receiver, t)
         else:
             self._items.refuse(item, giver, receiver, t)
+            if not giver_here:  # on its way back to the other process's ledger
+                self._items.handed_away(item)
         entry = self._robot(receiver)
         entry.sent += 1
         at = t + self.latency
-        if self._robot(giver).local:
+        if giver_here:
             self._at(
                 at,
                 (RECEIPT, receiver, entry.sent),
