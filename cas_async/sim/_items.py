@@ -195,6 +195,10 @@ class ItemLedger:
         """The items ``robot`` holds now, in the order it received them."""
         return tuple(self._held.get(robot, ()))
 
+    def travelling_with(self, robot: RobotId) -> tuple[ItemId, ...]:
+        """The items on their way from or to ``robot`` now (sent, or refused and going back)."""
+        return tuple(item for item, way in self._transit.items() if robot in way)
+
     def holders(self) -> tuple[RobotId, ...]:
         """Every robot that holds at least one item now (in no particular order)."""
         return tuple(self._held)  # a robot that holds nothing is not listed

@@ -146,3 +146,18 @@ def test_a_ledger_that_sees_everything_applies_a_story_of_steps_in_order() -> No
     assert (whole.holder(5), whole.transfers, whole.in_transit) == (2, 1, 0)
     with pytest.raises(SimulationError, match="a sent event of item 5 names no receiver"):
         whole.apply(ItemEvent(4.0, SENT, 5, 2))
+
+
+def test_the_items_travelling_with_a_robot_are_those_on_their_way_to_or_from_it() -> None:
+    ledger = checked()
+    first, second, kept = ledger.create(1, 0.0), ledger.create(1, 0.0), ledger.create(3, 0.0)
+    ledger.send(first, 1, 2, 1.0)
+    ledger.send(second, 1, 3, 1.0)
+    assert ledger.travelling_with(1) == (first, second)
+    assert (ledger.travelling_with(2), ledger.travelling_with(3)) == ((first,), (second,))
+    ledger.refuse(second, 1, 3, 1.5)  # on its way back: still between them
+    assert ledger.travelling_with(3) == (second,)
+    ledger.arrive(first, 1, 2, 1.5)
+    ledger.returned(second, 1, 2.0)
+    assert ledger.travelling_with(1) == ledger.travelling_with(3) == ()
+    assert ledger.held_by(3) == (kept,)

@@ -284,3 +284,57 @@ async def test_a_giver_that_stops_waiting_does_not_stop_its_item() -> None:
     assert handing.cancelled()
     assert env.items.holder(item) == 2
     assert story(env.items)[-1] == (L, TRANSFERRED, 2)
+
+
+# -- robots leaving ------------------------------------------------------------------------
+
+
+@pytest.mark.cas_virtual
+@pytest.mark.parametrize("leaving", [1, 2], ids=["giver", "receiver"])
+async def test_a_robot_with_items_on_their_way_to_or_from_it_cannot_leave(leaving: int) -> None:
+    clock = started_clock()
+    env = world(clock, (0, 0), (0, 0))
+    env.refuse_from(2, 1)
+    item = env.create_item(1, 0.0)
+    handing = asyncio.ensure_future(env.send_item(item, 1, 2, 0.0, reach=0.1))
+    for instant in (L / 2, 1.5 * L):  # on its way there, then refused and on its way back
+        await until(clock, instant)
+        with pytest.raises(SimulationError, match=rf"items \[{item}\] are on their way"):
+            env.remove_robot(leaving)
+    with pytest.raises(SimulationError, match="does not take items"):
+        await handing
+    env.retire_item(item, 1, clock.now())
+    env.remove_robot(leaving)  # nothing on its way any more
+    assert leaving not in env
+
+
+@pytest.mark.cas_virtual
+async def test_a_robot_that_leaves_before_its_motion_is_seen_is_simply_gone() -> None:
+    clock = started_clock()
+    env = world(clock, (0, 0), (10, 0))
+    loop = asyncio.get_running_loop()
+    failures: list[dict[str, object]] = []
+    loop.set_exception_handler(lambda _loop, context: failures.append(context))
+    try:
+        drive(env, 2, 0.0, 20, 0)
+        await until(clock, L / 2)
+        env.remove_robot(2)
+        env.add_robot(2, Pose(-3, 0, 0))  # another robot 2: the old motion is not its
+        await until(clock, 2 * L)
+    finally:
+        loop.set_exception_handler(None)
+    assert failures == []
+    assert seen(env, 1, 2 * L) == {2: (-3.0, 0.0)}
+
+
+@pytest.mark.cas_virtual
+async def test_a_giver_hears_of_a_receiver_that_took_the_item_and_left() -> None:
+    clock = started_clock()
+    env = world(clock, (0, 0), (0, 0))
+    item = env.create_item(1, 0.0)
+    handing = asyncio.ensure_future(env.send_item(item, 1, 2, 0.0, reach=0.1))
+    await until(clock, L)
+    env.retire_item(item, 2, L)
+    env.remove_robot(2)
+    await asyncio.wait_for(handing, 10.0)
+    assert clock.now() == 2 * L
