@@ -135,4 +135,5 @@ def test_a_run_with_more_processes_than_robots_is_a_usage_error_naming_both(
         check=False,
     )
     assert done.returncode == 2, done.stderr
-    assert "--processes: 20 robots cannot be shared by 21 workers" in done.stderr
+    assert "20 robots" in done.stderr
+    assert "21 worker" in done.stderr
