@@ -82,6 +82,11 @@ class Deliveries:
         loop = asyncio.get_running_loop() if loop is None else loop
         found = _OF_LOOP.get(loop)
         if found is None:
+            # The deliveries hold their loop (and their actions, the robots, hold it
+            # too), so a weak key alone never lets a loop go: a new loop's first use
+            # forgets the loops closed since, or every run would keep its predecessors.
+            for closed in [old for old in _OF_LOOP if old.is_closed()]:
+                del _OF_LOOP[closed]
             found = _OF_LOOP[loop] = cls(loop)
         return found
 

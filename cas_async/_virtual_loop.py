@@ -169,7 +169,10 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
             return []
         if timeout is None:  # no timer at all: only another thread can wake us
             return selector.select(None)
-        self.advance(timeout)
+        # To the timer's own instant, not ``now + timeout``: that may miss it by a
+        # rounding, and the time the timer reads would then depend on the events
+        # before it (on which robots share the loop).
+        self._virtual_now = max(self._virtual_now, timer)
         return []
 
     def run_windows(self, windows: Windows | None) -> None:

@@ -91,6 +91,8 @@ class Windows:
         self, next_event: float, selector: selectors.BaseSelector
     ) -> list[tuple[selectors.SelectorKey, int]]:
         """The loop is idle and its next event is at or after :attr:`end`: the window closes."""
+        if self.over:  # nothing is scheduled at all (the end is inf): as a loop without windows
+            return selector.select(None)
         if self._closing is None:
             following = None if self._quick is None else self._quick(self._end, next_event)
             if following is not None:

@@ -241,7 +241,8 @@ class Environment:
 
         Raises:
             UnknownRobotError: no such robot.
-            SimulationError: the robot holds items, which would be lost with it.
+            SimulationError: the robot holds items, or items are on their way to or
+                from it (with a latency): they would be lost with it.
         """
         gone = self._robot(robot_id)
         held = self._items.held_by(robot_id)
@@ -249,6 +250,12 @@ class Environment:
             raise SimulationError(
                 f"robot {robot_id} holds items {list(held)}: hand them over or retire "
                 "them before removing it, or they would be lost"
+            )
+        travelling = self._items.travelling_with(robot_id)
+        if travelling:
+            raise SimulationError(
+                f"items {list(travelling)} are on their way to or from robot {robot_id}: "
+                "let their hand-overs end before removing it, or they would be lost"
             )
         del self._robots[robot_id]
         self._table.delete(gone.index)
@@ -343,7 +350,7 @@ class Environment:
             self._at(
                 start_time + self.latency,
                 (MOTION, robot_id, robot.motions),
-                lambda: self.see_motion(robot_id, motion, start_time),
+                lambda: self._see_own(robot, robot_id, motion, start_time),
             )
         self._cache = None
         for watcher in self._motion_watchers:
@@ -378,6 +385,10 @@ class Environment:
             self._grid.place(
                 robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y
             )
+
+    def _see_own(self, robot: _Robot, robot_id: RobotId, motion: Motion, start: float) -> None:
+        if self._robots.get(robot_id) is robot:  # else removed since: nobody to see any more
+            self.see_motion(robot_id, motion, start)
 
     def halt(self, robot_id: RobotId, t: float) -> Pose:
         """Stops the robot where it is at ``t``; it stands there from ``t`` on.
@@ -634,14 +645,17 @@ class Environment:
         if clock is not None and not clock.is_virtual:
             t = max(t, clock.now())
         refused = self._refusal(item, giver, receiver, t, reach)
+        giver_here = self._robot(giver).local
         if refused is None:
             self._items.arrive(item, giver, receiver, t)
         else:
             self._items.refuse(item, giver, receiver, t)
+            if not giver_here:  # on its way back to the other process's ledger
+                self._items.handed_away(item)
         entry = self._robot(receiver)
         entry.sent += 1
         at = t + self.latency
-        if self._robot(giver).local:
+        if giver_here:
             self._at(
                 at,
                 (RECEIPT, receiver, entry.sent),
@@ -655,9 +669,10 @@ class Environment:
         self, item: ItemId, giver: RobotId, receiver: RobotId, n: int, refused: str | None
     ) -> None:
         """The answer to ``giver``'s hand-over ``n`` reaches it now: the item is back if refused."""
+        taker = self._robots.get(receiver)  # (gone since it took the item: it was here)
         if refused is not None:
             self._items.returned(item, giver, self._robot_time(giver))
-        elif not self._robot(receiver).local:
+        elif taker is not None and not taker.local:
             self._items.handed_away(item)  # it is the other process's ledger's now
         outcome = self._sending.get((giver, n))
         if outcome is not None and not outcome.done():

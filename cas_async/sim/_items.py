@@ -195,6 +195,10 @@ class ItemLedger:
         """The items ``robot`` holds now, in the order it received them."""
         return tuple(self._held.get(robot, ()))
 
+    def travelling_with(self, robot: RobotId) -> tuple[ItemId, ...]:
+        """The items on their way from or to ``robot`` now (sent, or refused and going back)."""
+        return tuple(item for item, way in self._transit.items() if robot in way)
+
     def holders(self) -> tuple[RobotId, ...]:
         """Every robot that holds at least one item now (in no particular order)."""
         return tuple(self._held)  # a robot that holds nothing is not listed
@@ -298,11 +302,14 @@ class ItemLedger:
     def returned(self, item: ItemId, giver: RobotId, t: float) -> None:
         """A refused ``item`` is back in ``giver``'s hands at ``t``.
 
+        In a partial ledger the refusal may have happened in another ledger (the
+        receiver's): here the item is then still on its way from ``giver``.
+
         Raises:
             SimulationError: the item is not on its way back to ``giver``.
         """
         way = self._transit.get(item)
-        if way is None or way[1] != giver:
+        if way is None or (way[1] != giver and not (self._partial and way[0] == giver)):
             raise SimulationError(f"item {item} is not on its way back to robot {giver}")
         del self._transit[item]
         self._holder[item] = giver
@@ -310,7 +317,10 @@ class ItemLedger:
         self._record(ItemEvent(t, ItemEventKind.RETURNED, item, giver), giver)
 
     def handed_away(self, item: ItemId) -> None:
-        """A partial ledger's item sent to another ledger's robot arrived there: it leaves."""
+        """A partial ledger's item leaves it for another ledger's robot.
+
+        It arrived there, or it was refused here and travels back to its giver there.
+        """
         way = self._transit.pop(item, None)
         if way is None:
             raise SimulationError(f"item {item} is not on its way from this ledger")

@@ -1,0 +1,58 @@
+"""The virtual-time loop reaches a timer's own instant, whatever events came before it.
+
+A run across processes gives the very results of a run in one only if a robot reads
+the same time at the same instant in every process, although each process's loop
+saw other events before it (those of the robots it runs).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import random
+
+import pytest
+
+import cas_async
+from cas_async import VirtualClock
+
+
+def reached(instants: list[float], before: list[float]) -> list[float]:
+    """The loop times read by timers at ``instants``, on a loop that also had ``before``."""
+
+    async def main() -> list[float]:
+        loop = asyncio.get_running_loop()
+        read: dict[float, float] = {}
+        for when in before:
+            loop.call_at(when, lambda: None)
+        for when in instants:
+            loop.call_at(when, lambda when=when: read.setdefault(when, loop.time()))
+        await asyncio.sleep(max(instants) + 1.0)
+        return [read[when] for when in instants]
+
+    result: list[float] = cas_async.run(main(), virtual=True)
+    return result
+
+
+def test_a_timer_reads_its_own_instant_whatever_came_before() -> None:
+    instants = [1.7, 2.9, 3.3, 10.1, 1e-3 + 7]
+    # 0.6 then 1.7: 0.6 + (1.7 - 0.6) is 1.7000000000000002 in floating point.
+    assert reached(instants, [0.6, 0.1, 0.3]) == instants
+    assert reached(instants, [1.2]) == instants
+    rng = random.Random(28)
+    assert reached(instants, [rng.uniform(0, 12) for _ in range(200)]) == instants
+
+
+def test_a_timer_more_than_a_day_away_is_reached_exactly() -> None:
+    # asyncio waits at most a day at a time: the loop must not stop short of it.
+    assert reached([200_000.3], [0.7]) == [200_000.3]
+
+
+@pytest.mark.cas_virtual
+async def test_a_clocks_sleep_until_wakes_at_its_instant() -> None:
+    clock = VirtualClock()
+    clock.start()
+    loop = asyncio.get_running_loop()
+    loop.call_at(0.6, lambda: None)
+    await clock.sleep_until(0.6)
+    await clock.sleep_until(1.7)
+    assert clock.now() == 1.7
