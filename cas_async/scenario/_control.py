@@ -120,6 +120,10 @@ class Counts(msgspec.Struct, frozen=True, array_like=True):
     refused: dict[str, int] = msgspec.field(default_factory=dict)
     faults: dict[str, int] | None = None
     """The ``[faults]`` wire's counts (:attr:`FaultyTransport.stats`), if it has faults."""
+    late: int = 0
+    """Scaled time: effects from other workers that came after their instant."""
+    most_late: float = 0.0
+    """Scaled time: wall seconds the latest of them came after its instant."""
 
 
 class Hello(msgspec.Struct, frozen=True, tag="hello"):

@@ -176,6 +176,7 @@ class ScenarioRun:
             detail=objective.detail,
         )
         """What the run measured: complete once the robots have stopped."""
+        self._behind = 0.0  # simulated seconds the latest sample came after its instant
         self.trace = Trace(environment.robot_ids)
         """Where the robots were over simulated time."""
         self._measures = PositionMeasures(mission, self.trace.ids)
@@ -320,6 +321,7 @@ class ScenarioRun:
                 self._stop,
                 self._sample,
                 self._listeners.hold,
+                self._fell_behind,
             )
         except LayerError as error:  # the swarm's, raised again as its task is awaited
             status, failure = RunStatus.FAILED, error
@@ -380,6 +382,8 @@ class ScenarioRun:
             result.extra.update(self._world.stats())
         elif self._windowed is not None:
             result.extra["windows"] = self._windowed.rounds
+        if not self._scenario.run.virtual:  # how far the run fell behind the wall clock
+            result.extra["behind_s"] = round(self._behind, 3)
         self._count_faults()
         if self._trace_csv is not None:
             try:
@@ -408,6 +412,8 @@ class ScenarioRun:
         except LayerError as error:  # a failure that running did not raise
             mark_failed(self.result, error)
         finally:
+            if self._windowed is not None:
+                self._windowed.stop()  # a start that failed left its windows on the loop
             if self._world is not None:
                 await self._world.close()
             self._gc.close()
@@ -417,6 +423,9 @@ class ScenarioRun:
             self._count_faults()  # read after the swarm closed its endpoints
             if not self._ended:  # else measured when it ended: stopping is not the run's
                 self.result.wall_time = self._wall_clock() - self._started
+
+    def _fell_behind(self, seconds: float) -> None:
+        self._behind = max(self._behind, seconds)
 
     def _sample(self, t: float) -> None:
         if self._ended:

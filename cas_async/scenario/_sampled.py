@@ -29,10 +29,14 @@ async def sampled_until_end(
     stop: asyncio.Event | None,
     sample: Callable[[float], None],
     hold: Callable[[float], Coroutine[Any, Any, None]],
+    behind: Callable[[float], None] = lambda seconds: None,
 ) -> tuple[RunStatus, BaseException | None]:
     """Samples every ``interval`` simulated seconds, awaiting ``hold`` after each, until an end.
 
-    Returns which end; the exception is that of a failed run (a layer's, or the sampling's).
+    ``behind`` is told, at each sample, how many simulated seconds after its instant
+    it was taken: on scaled time, how far the run fell behind the wall clock (its
+    loop was busy). Returns which end; the exception is that of a failed run (a
+    layer's, or the sampling's).
     """
 
     async def sampling() -> None:
@@ -40,6 +44,7 @@ async def sampled_until_end(
         while True:
             await clock.sleep_until(tick * interval)  # absolute instants: no drift
             sample(now := clock.now())
+            behind(now - tick * interval)
             await hold(now)
             tick += 1
 

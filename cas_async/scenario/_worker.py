@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from .._clock import Clock, ScaledClock
+from .._deliveries import Deliveries
 from .._errors import ConfigurationError
 from .._runner import run
 from .._swarm import Swarm
@@ -291,8 +292,15 @@ class _Worker:
         counts = self._swarm.message_counts()
         refused = {} if self._channel is None else dict(self._channel.refused)
         faults = self._wire.stats if isinstance(self._wire, FaultyTransport) else None
+        deliveries = Deliveries.of()
         return Counts(
-            counts["internal"], counts["external"], self._swarm.drop_counts(), refused, faults
+            counts["internal"],
+            counts["external"],
+            self._swarm.drop_counts(),
+            refused,
+            faults,
+            deliveries.late,
+            round(deliveries.most_late, 4),
         )
 
     # -- virtual time: windows -----------------------------------------------------------
@@ -351,7 +359,10 @@ class _Worker:
         if self._channel is None or self._network is None or self._recorder is None:
             return
         now = self._clock.now() if self._clock is not None else 0.0
-        window = Window(-1, now, self._recorder.take(), self._network.take_outgoing(), Counts())
+        counts = Counts()
+        if time.monotonic() - self._counted >= COUNTS_EVERY:
+            self._counted, counts = time.monotonic(), self._counts()
+        window = Window(-1, now, self._recorder.take(), self._network.take_outgoing(), counts)
         self._channel.send(f"win/{self._index}", window)
 
     async def _beat(self) -> None:

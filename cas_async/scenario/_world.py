@@ -339,9 +339,19 @@ class World:
         """What the distribution cost: workers, windows, the longest wait of a worker.
 
         ``worker_waited_s``: the most wall seconds a worker spent waiting for the
-        others' windows and for grants.
+        others' windows and for grants. On scaled time instead, how many effects
+        came from another worker after their instant (``late_effects``) and the
+        most wall seconds one came late (``most_late_s``): how far the workers
+        fell behind each other.
         """
         waited = max(self._waited.values(), default=0.0)
+        if not self._scenario.run.virtual:  # scaled time: what came late, and how late
+            counts = self._counts.values()
+            return {
+                "workers": self._workers,
+                "late_effects": sum(c.late for c in counts),
+                "most_late_s": max((c.most_late for c in counts), default=0.0),
+            }
         return {
             "workers": self._workers,
             "windows": self.rounds,
