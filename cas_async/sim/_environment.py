@@ -33,19 +33,20 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Final, Protocol
+from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 
 from .._clock import Clock
-from .._deliveries import ITEM, MOTION, RECEIPT, Deliveries
+from .._deliveries import MOTION
 from .._errors import ConfigurationError, SimulationError, UnknownRobotError
 from .._pose import Pose
 from .._positions import Positions
-from .._types import ItemId, RobotId
-from ._grid import CellGrid
+from .._types import RobotId
+from ._entries import Courier, RobotEntry, check_instant
+from ._grid import CellGrid, nearest_first
+from ._handovers import Handovers
 from ._items import ItemLedger
 from ._kinematics import Motion
 from ._segments import SegmentTable
@@ -61,69 +62,7 @@ _START_TOLERANCE: Final = 1e-9
 _GRID_FROM: Final = 64
 
 
-def _check_instant(t: float) -> None:
-    if math.isnan(t):
-        raise SimulationError("t must be a number, got nan")
-
-
-@dataclass(slots=True)
-class _Robot:
-    """One robot's entry: its current motion, since when, and its row in the table."""
-
-    index: int
-    mobile: bool
-    motion: Motion
-    since: float
-    odometer: float = 0.0  # distance translated by the motions before the current one
-    # Robots this one takes items from; None: from anyone (see Environment.accept_from).
-    accepting: set[RobotId] | None = None
-    local: bool = True  # its motions start here (else they are only seen, see see_motion)
-    motions: int = 0  # motions started so far: their order within an instant
-    sent: int = 0  # items sent so far, and answers given: their order within an instant
-    seen: Motion | None = None  # with a latency: the motion the others see
-    seen_since: float = -math.inf
-
-    def travelled(self, t: float) -> float:
-        """Total distance translated up to instant ``t``."""
-        # A standing motion (the only kind that starts at -inf) translates nothing;
-        # skipping it also avoids evaluating inf - inf.
-        if self.motion.length == 0:
-            return self.odometer
-        return self.odometer + self.motion.travelled(t - self.since)
-
-
-class Courier(Protocol):
-    """Takes a hand-over's steps to robots of other processes (see ``Environment.set_local``)."""
-
-    def arrive(
-        self,
-        at: float,
-        item: ItemId,
-        giver: RobotId,
-        receiver: RobotId,
-        sent: float,
-        reach: float,
-        n: int,
-    ) -> None:
-        """The item reaches ``receiver`` (another process's robot) at ``at``."""
-
-    def receipt(
-        self,
-        at: float,
-        item: ItemId,
-        giver: RobotId,
-        receiver: RobotId,
-        n: int,
-        refused: str | None,
-        answer: int,
-    ) -> None:
-        """The answer to hand-over ``n`` reaches ``giver`` (another process's robot) at ``at``.
-
-        ``answer`` is the receiver's own count of answers: their order within an instant.
-        """
-
-
-class Environment:
+class Environment(Handovers):
     """Poses and motions of every simulated robot, exact at any simulated instant.
 
     Robots keep the order in which they were added; query results that cover all
@@ -160,7 +99,7 @@ class Environment:
         self.latency = latency
         """Simulated seconds before others see a motion, and a handed item arrives."""
         self._clock = clock
-        self._robots: dict[RobotId, _Robot] = {}
+        self._robots: dict[RobotId, RobotEntry] = {}
         self._items = ItemLedger(ids_by_creator=latency > 0)
         self._sending: dict[tuple[RobotId, int], asyncio.Future[None]] = {}  # hand-overs
         self._courier: Courier | None = None
@@ -228,7 +167,7 @@ class Environment:
             raise ConfigurationError(f"robot {robot_id} is already in the environment")
         motion = Motion.standing(pose)
         index = len(self._robots)
-        self._robots[robot_id] = _Robot(index, mobile, motion, -math.inf, seen=motion)
+        self._robots[robot_id] = RobotEntry(index, mobile, motion, -math.inf, seen=motion)
         self._table.append(-math.inf, motion)
         if self._seen is not None:
             self._seen.append(-math.inf, motion)
@@ -292,16 +231,16 @@ class Environment:
         """Whether the robot can move (see :meth:`add_robot`)."""
         return self._robot(robot_id).mobile
 
-    def _robot(self, robot_id: RobotId) -> _Robot:
+    def _robot(self, robot_id: RobotId) -> RobotEntry:
         try:
             return self._robots[robot_id]
         except KeyError:
             raise UnknownRobotError(f"robot {robot_id} is not in the environment") from None
 
-    def _robot_at(self, robot_id: RobotId, t: float) -> _Robot:
+    def _robot_at(self, robot_id: RobotId, t: float) -> RobotEntry:
         """The robot, to be asked about instant ``t`` (checked)."""
         robot = self._robot(robot_id)
-        _check_instant(t)
+        check_instant(t)
         return robot
 
     # -- motion -------------------------------------------------------------------------
@@ -386,7 +325,7 @@ class Environment:
                 robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y
             )
 
-    def _see_own(self, robot: _Robot, robot_id: RobotId, motion: Motion, start: float) -> None:
+    def _see_own(self, robot: RobotEntry, robot_id: RobotId, motion: Motion, start: float) -> None:
         if self._robots.get(robot_id) is robot:  # else removed since: nobody to see any more
             self.see_motion(robot_id, motion, start)
 
@@ -427,7 +366,7 @@ class Environment:
         Raises:
             SimulationError: ``t`` is NaN.
         """
-        _check_instant(t)
+        check_instant(t)
         cached = self._cache
         if cached is not None and cached[0] == t:
             return cached[1]
@@ -455,23 +394,23 @@ class Environment:
         index = self._robot(robot_id).index
         if not radius >= 0:
             raise SimulationError(f"radius must be >= 0, got {radius!r}")
-        _check_instant(t)
+        check_instant(t)
         seen = self._seen
         near = self._near(index, radius, t)
         if near is None:
             if seen is None:
                 everyone = self.positions_at(t)
-                return _nearest_first(everyone.ids, everyone.xy, everyone.xy[index], radius, index)
+                return nearest_first(everyone.ids, everyone.xy, everyone.xy[index], radius, index)
             xy = seen.positions(t)
             xy[index] = self._table.positions_of(t, np.array([index], dtype=np.intp))[0]
-            return _nearest_first(self._row_ids(), xy, xy[index], radius, index)
+            return nearest_first(self._row_ids(), xy, xy[index], radius, index)
         rows = np.fromiter((index, *near), dtype=np.intp, count=len(near) + 1)
         if seen is None:
             xy = self._table.positions_of(t, rows)
         else:  # the asker where it is, the others where they are seen
             xy = seen.positions_of(t, rows)
             xy[0] = self._table.positions_of(t, rows[:1])[0]
-        return _nearest_first(self._row_ids()[rows], xy, xy[0], radius, 0)
+        return nearest_first(self._row_ids()[rows], xy, xy[0], radius, 0)
 
     def _near(self, index: int, radius: float, t: float) -> set[int] | None:
         """Rows that may be within ``radius`` of row ``index`` at ``t``, itself left out.
@@ -529,250 +468,5 @@ class Environment:
         Raises:
             SimulationError: ``t`` is NaN.
         """
-        _check_instant(t)
+        check_instant(t)
         return {robot_id: robot.travelled(t) for robot_id, robot in self._robots.items()}
-
-    # -- items --------------------------------------------------------------------------
-
-    def create_item(self, robot_id: RobotId, t: float) -> ItemId:
-        """Creates an item in the robot's hands at instant ``t`` and returns its id.
-
-        Raises:
-            UnknownRobotError: no such robot.
-            SimulationError: ``t`` is not finite.
-        """
-        self._robot(robot_id)
-        return self._items.create(robot_id, t)
-
-    def hand_over(
-        self, item: ItemId, giver: RobotId, receiver: RobotId, t: float, *, reach: float
-    ) -> None:
-        """Hands ``item`` from ``giver`` to ``receiver`` at instant ``t``, atomically.
-
-        Args:
-            item: an item ``giver`` holds.
-            giver: the robot handing it over.
-            receiver: another robot, within ``reach`` of ``giver`` at ``t``.
-            t: the simulated instant of the hand-over.
-            reach: the largest distance between the two robots' positions at which
-                the hand-over may happen (inclusive).
-
-        Raises:
-            UnknownRobotError: either robot is not in the environment.
-            SimulationError: ``reach`` is negative or NaN, ``t`` is not finite, the robots
-                are farther apart than ``reach``, ``receiver`` does not take items from
-                ``giver`` (see :meth:`accept_from`), or the ledger refuses the transfer
-                (see :meth:`ItemLedger.transfer`). Nothing changes then.
-        """
-        self._robot(giver)
-        self._robot(receiver)
-        if not reach >= 0:
-            raise SimulationError(f"reach must be >= 0, got {reach!r}")
-        if not math.isfinite(t):  # before evaluating positions at it
-            raise SimulationError(f"a hand-over's t must be a finite number, got {t!r}")
-        here, there = self.pose_at(giver, t), self.pose_at(receiver, t)
-        distance = math.hypot(there.x - here.x, there.y - here.y)
-        if distance > reach:
-            raise SimulationError(
-                f"robot {giver} at ({here.x!r}, {here.y!r}) cannot hand item {item} to "
-                f"robot {receiver} at ({there.x!r}, {there.y!r}) at {t!r}: they are "
-                f"{distance!r} apart, beyond the reach of {reach!r}"
-            )
-        accepting = self._robot(receiver).accepting
-        if accepting is not None and giver not in accepting:
-            raise SimulationError(
-                f"robot {receiver} does not take items from robot {giver} at {t!r}"
-                f" (it takes them from {sorted(accepting)})"
-            )
-        self._items.transfer(item, giver, receiver, t)
-
-    async def send_item(
-        self, item: ItemId, giver: RobotId, receiver: RobotId, t: float, *, reach: float
-    ) -> None:
-        """Hands ``item`` from ``giver`` to ``receiver`` over the latency: returns once it is known.
-
-        With a latency ``L`` (see the module docs) the item leaves the giver at ``t``
-        and reaches the receiver at ``t + L``. It is taken there if the receiver's
-        hands are held out to the giver then and the two are within ``reach`` (the
-        receiver where it is, the giver where it is seen); else it travels back and
-        is the giver's again at ``t + 2L``. The giver learns the outcome at ``t + 2L``
-        either way: this returns then, or raises ``SimulationError`` saying why the
-        receiver refused it. Without a latency it is :meth:`hand_over`.
-
-        Raises:
-            UnknownRobotError: either robot is not in the environment.
-            SimulationError: ``reach`` is negative or NaN, ``t`` is not finite, the
-                giver does not hold the item, or the receiver refused it.
-        """
-        if self._seen is None:
-            self.hand_over(item, giver, receiver, t, reach=reach)
-            return
-        self._robot(receiver)
-        if not reach >= 0:
-            raise SimulationError(f"reach must be >= 0, got {reach!r}")
-        if not math.isfinite(t):
-            raise SimulationError(f"a hand-over's t must be a finite number, got {t!r}")
-        self._items.send(item, giver, receiver, t)
-        entry = self._robot(giver)
-        entry.sent += 1
-        n = entry.sent
-        outcome: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        self._sending[(giver, n)] = outcome
-        at = t + self.latency
-        if self._robot(receiver).local:
-            self._at(
-                at, (ITEM, giver, n), lambda: self.item_arrives(item, giver, receiver, t, reach, n)
-            )
-        else:
-            assert self._courier is not None  # set_local() gave one with the remote robots
-            self._courier.arrive(at, item, giver, receiver, t, reach, n)
-        try:
-            await outcome
-        finally:
-            self._sending.pop((giver, n), None)
-
-    def item_arrives(
-        self, item: ItemId, giver: RobotId, receiver: RobotId, sent: float, reach: float, n: int
-    ) -> None:
-        """Hand-over ``n`` of ``giver`` (sent at ``sent``) reaches ``receiver`` now, ``sent + L``.
-
-        Taken or refused here (see :meth:`send_item`); the answer goes back to the giver.
-        On scaled real time a hand-over that comes late (from another process) is
-        taken when it came, never before what was recorded since.
-        """
-        t = sent + self.latency
-        clock = self._clock
-        if clock is not None and not clock.is_virtual:
-            t = max(t, clock.now())
-        refused = self._refusal(item, giver, receiver, t, reach)
-        giver_here = self._robot(giver).local
-        if refused is None:
-            self._items.arrive(item, giver, receiver, t)
-        else:
-            self._items.refuse(item, giver, receiver, t)
-            if not giver_here:  # on its way back to the other process's ledger
-                self._items.handed_away(item)
-        entry = self._robot(receiver)
-        entry.sent += 1
-        at = t + self.latency
-        if giver_here:
-            self._at(
-                at,
-                (RECEIPT, receiver, entry.sent),
-                lambda: self.item_receipt(item, giver, receiver, n, refused),
-            )
-        else:
-            assert self._courier is not None
-            self._courier.receipt(at, item, giver, receiver, n, refused, entry.sent)
-
-    def item_receipt(
-        self, item: ItemId, giver: RobotId, receiver: RobotId, n: int, refused: str | None
-    ) -> None:
-        """The answer to ``giver``'s hand-over ``n`` reaches it now: the item is back if refused."""
-        taker = self._robots.get(receiver)  # (gone since it took the item: it was here)
-        if refused is not None:
-            self._items.returned(item, giver, self._robot_time(giver))
-        elif taker is not None and not taker.local:
-            self._items.handed_away(item)  # it is the other process's ledger's now
-        outcome = self._sending.get((giver, n))
-        if outcome is not None and not outcome.done():
-            if refused is None:
-                outcome.set_result(None)
-            else:
-                outcome.set_exception(SimulationError(refused))
-
-    def _refusal(
-        self, item: ItemId, giver: RobotId, receiver: RobotId, t: float, reach: float
-    ) -> str | None:
-        """Why ``receiver`` refuses ``item`` from ``giver`` arriving at ``t``, or ``None``."""
-        accepting = self._robot(receiver).accepting
-        if accepting is not None and giver not in accepting:
-            return (
-                f"robot {receiver} does not take items from robot {giver} at {t!r}"
-                f" (it takes them from {sorted(accepting)})"
-            )
-        here = self.pose_at(receiver, t)
-        seen = self._seen
-        assert seen is not None
-        x, y = seen.positions_of(t, np.array([self._robot(giver).index], dtype=np.intp))[0].tolist()
-        distance = math.hypot(here.x - x, here.y - y)
-        if distance > reach:
-            return (
-                f"robot {giver} at ({x!r}, {y!r}) cannot hand item {item} to robot {receiver} "
-                f"at ({here.x!r}, {here.y!r}) at {t!r}: they are {distance!r} apart, beyond "
-                f"the reach of {reach!r}"
-            )
-        return None
-
-    def _robot_time(self, robot_id: RobotId) -> float:
-        """Now, in simulated time (what the clock says)."""
-        assert self._clock is not None
-        return self._clock.now()
-
-    def _at(self, t: float, key: tuple[object, ...], action: Callable[[], None]) -> None:
-        """Runs ``action`` at simulated instant ``t``, in ``key`` order (see ``_deliveries``)."""
-        assert self._clock is not None  # a latency comes with a clock
-        Deliveries.of().at(self._clock.loop_time_at(t), key, action)
-
-    def accept_from(self, receiver: RobotId, giver: RobotId) -> None:
-        """From now on ``receiver`` takes items from ``giver`` (and only from the givers so named).
-
-        A robot takes items from anyone until this or :meth:`refuse_from` is first
-        called for it. Holding out one's hands is a physical, atomic act: a robot
-        that withdraws them (``refuse_from``) and then finds no item in them knows
-        that no hand-over from that giver can happen any more, whatever messages
-        were lost. That is how two robots agree on a hand-over without a reliable
-        network.
-
-        Raises:
-            UnknownRobotError: either robot is not in the environment.
-        """
-        self._robot(giver)
-        entry = self._robot(receiver)
-        if entry.accepting is None:
-            entry.accepting = set()
-        entry.accepting.add(giver)
-
-    def refuse_from(self, receiver: RobotId, giver: RobotId) -> None:
-        """``receiver`` takes no more items from ``giver`` (see :meth:`accept_from`).
-
-        Raises:
-            UnknownRobotError: ``receiver`` is not in the environment.
-        """
-        entry = self._robot(receiver)
-        if entry.accepting is None:
-            entry.accepting = set()
-        entry.accepting.discard(giver)
-
-    def retire_item(self, item: ItemId, robot_id: RobotId, t: float) -> None:
-        """Retires ``item``, held by the robot, at instant ``t``.
-
-        Raises:
-            UnknownRobotError: no such robot.
-            SimulationError: see :meth:`ItemLedger.retire`.
-        """
-        self._robot(robot_id)
-        self._items.retire(item, robot_id, t)
-
-
-def _nearest_first(
-    ids: npt.NDArray[np.int64],
-    xy: npt.NDArray[np.float64],
-    here: npt.NDArray[np.float64],
-    radius: float,
-    own: int,
-) -> Positions:
-    """The rows of ``ids``/``xy`` within ``radius`` of ``here``, row ``own`` left out.
-
-    Nearest first, ties broken by id. Every row's distance is computed on its own,
-    so a subset of rows gets the same numbers as the whole table.
-    """
-    offsets = xy - here
-    squared = np.einsum("ij,ij->i", offsets, offsets)
-    inside = squared <= radius * radius
-    inside[own] = False
-    found = np.flatnonzero(inside)
-    order = found[np.lexsort((ids[found], squared[found]))]
-    found_ids, found_xy = ids[order], xy[order]
-    found_ids.flags.writeable = found_xy.flags.writeable = False
-    return Positions(found_ids, found_xy)

@@ -15,7 +15,12 @@ from __future__ import annotations
 import math
 from typing import Final, final
 
-__all__ = ["CellGrid"]
+import numpy as np
+import numpy.typing as npt
+
+from .._positions import Positions
+
+__all__ = ["CellGrid", "nearest_first"]
 
 _Span = tuple[int, int, int, int]  # x0, y0, x1, y1: inclusive cell indices
 
@@ -134,3 +139,26 @@ class CellGrid:
                 if rows:
                     found |= rows
         return found
+
+
+def nearest_first(
+    ids: npt.NDArray[np.int64],
+    xy: npt.NDArray[np.float64],
+    here: npt.NDArray[np.float64],
+    radius: float,
+    own: int,
+) -> Positions:
+    """The rows of ``ids``/``xy`` within ``radius`` of ``here``, row ``own`` left out.
+
+    Nearest first, ties broken by id. Every row's distance is computed on its own,
+    so a subset of rows gets the same numbers as the whole table.
+    """
+    offsets = xy - here
+    squared = np.einsum("ij,ij->i", offsets, offsets)
+    inside = squared <= radius * radius
+    inside[own] = False
+    found = np.flatnonzero(inside)
+    order = found[np.lexsort((ids[found], squared[found]))]
+    found_ids, found_xy = ids[order], xy[order]
+    found_ids.flags.writeable = found_xy.flags.writeable = False
+    return Positions(found_ids, found_xy)
