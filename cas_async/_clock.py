@@ -28,26 +28,13 @@ from abc import ABC, abstractmethod
 from typing import Final, final
 
 from ._errors import ConfigurationError
+from ._loop_timers import timer_pad
 from ._virtual_loop import VirtualTimeLoop
 
 __all__ = ["Clock", "ScaledClock", "VirtualClock"]
 
 _IN_PYTEST_TEST: Final = "PYTEST_CURRENT_TEST"
 """The variable pytest sets while a test runs: the error names the marker there."""
-_MILLISECOND_ROUNDING: Final = 0.0005 + 1e-6
-"""Loop seconds a millisecond-rounding loop (uvloop) may run a timer early, and a hair."""
-
-
-def _loop_timer_pad(loop: asyncio.AbstractEventLoop) -> float:
-    """Loop seconds to add to a deadline so that a timer armed for it never goes off early.
-
-    The stdlib loop runs timers due within its clock resolution (a nanosecond);
-    uvloop rounds delays to whole milliseconds.
-    """
-    if type(loop).__module__.partition(".")[0] == "uvloop":
-        return _MILLISECOND_ROUNDING
-    resolution = getattr(loop, "_clock_resolution", 0.0)
-    return float(resolution) if isinstance(resolution, int | float) else 0.0
 
 
 def _wake(future: asyncio.Future[None]) -> None:
@@ -68,7 +55,7 @@ class Clock(ABC):
     def __init__(self) -> None:
         self._origin: float | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._pad = 0.0  # loop seconds added to every deadline: see _loop_timer_pad
+        self._pad = 0.0  # loop seconds added to every deadline: see _loop_timers
         self._next_ids: dict[int, int] = {}  # robot -> the first id it has not used
 
     @property
@@ -104,7 +91,7 @@ class Clock(ABC):
 
     def _timer_pad(self, loop: asyncio.AbstractEventLoop) -> float:
         """Loop seconds added to every deadline so that no timer goes off before it."""
-        return _loop_timer_pad(loop)
+        return timer_pad(loop)
 
     def now(self) -> float:
         """Simulated seconds since the clock started."""

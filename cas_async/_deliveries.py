@@ -27,6 +27,8 @@ import weakref
 from collections.abc import Callable
 from typing import Any, Final, Protocol
 
+from ._loop_timers import timer_pad
+
 __all__ = ["DATAGRAM", "ITEM", "MOTION", "RECEIPT", "Deliveries", "DeliveryHost"]
 
 MOTION: Final = 0
@@ -60,13 +62,24 @@ class Deliveries:
     shares it, so their deliveries of one instant are ordered together.
     """
 
-    __slots__ = ("_count", "_heap", "_loop", "_virtual", "_waker", "_waker_at", "late", "most_late")
+    __slots__ = (
+        "_count",
+        "_heap",
+        "_loop",
+        "_pad",
+        "_virtual",
+        "_waker",
+        "_waker_at",
+        "late",
+        "most_late",
+    )
 
     def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
         self._loop = loop
         self._heap: list[tuple[float, Key, int, Callable[[], None]]] = []
         self._count = 0  # ties of identical keys keep the order they were given in
         self._virtual = hasattr(loop, "host")
+        self._pad = 0.0 if self._virtual else timer_pad(loop)  # no action before its instant
         self._waker: asyncio.Handle | None = None
         self._waker_at = math.inf
         self.late = 0
@@ -141,11 +154,11 @@ class Deliveries:
                 return
             self._waker.cancel()
         # (a loop may answer a call_at in the past with a plain Handle, without when())
-        self._waker, self._waker_at = self._loop.call_at(when, self._woken), when
+        self._waker, self._waker_at = self._loop.call_at(when + self._pad, self._woken), when
 
     def _woken(self) -> None:
         armed, self._waker, self._waker_at = self._waker_at, None, math.inf
-        # A timer may go off a hair before its time: the instant it was armed for has come.
+        # Armed a pad late, so the instant it was armed for has come (and a hair more).
         self.run_due(max(self._loop.time(), armed))
         if self._heap:
             self._wake_at(self._heap[0][0])

@@ -3,15 +3,21 @@
 from __future__ import annotations
 
 import asyncio
+import functools
 import random
 
 import pytest
 
 import cas_async
 from cas_async import Clock, ScaledClock, VirtualClock, loop_factory, uvloop_available
+from cas_async._deliveries import DATAGRAM, Deliveries
 
 STEPS = 1000
 DT = 0.1  # not a binary fraction: rounding would show
+
+
+def _stamp(future: asyncio.Future[float], clock: Clock) -> None:
+    future.set_result(clock.now())
 
 
 async def _stepping(clock: Clock, *, absolute: bool, seed: int = 1) -> list[float]:
@@ -135,6 +141,14 @@ def test_real_time_timers_never_wake_before_their_instant(use_uvloop: bool) -> N
                     await loop.create_future()
             if clock.now() < due:
                 early.append(("timeout", clock.now(), due))
+            # What one robot does to another at a later instant (an item, a datagram)
+            # runs when the robot's clock has reached that instant, never before.
+            delivered: asyncio.Future[float] = loop.create_future()
+            due = clock.now() + seconds
+            stamp = functools.partial(_stamp, delivered, clock)
+            Deliveries.of(loop).at(clock.loop_time_at(due), (DATAGRAM, 1, 1), stamp)
+            if (now := await delivered) < due:
+                early.append(("delivery", now, due))
 
     with asyncio.Runner(loop_factory=loop_factory(use_uvloop=use_uvloop)) as runner:
         runner.run(main())
