@@ -39,7 +39,7 @@ import json
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Final, cast
 
 import numpy as np
 
@@ -271,7 +271,8 @@ def summary_table(result: RunResult) -> str:
         sizes = [f"{label} {len(ids):,}" for label, ids in result.groups.items()]
         rows.append(("robots", sizes, ""))
     for key, value in result.extra.items():
-        rows.append((key.replace("_", " "), _extra_text(value), ""))
+        label, note = _RUNTIME_EXTRAS.get(key, (key.replace("_", " "), ""))
+        rows.append((label, _extra_text(value), note))
     header = f"{result.app} — {result.scenario}, seed {result.seed}: {status}"
     return "\n".join([header, *_render(rows)])
 
@@ -433,6 +434,12 @@ def _measure_parts(result: RunResult, name: str, value: float) -> list[str]:
             "after exchange " + " ".join(f"{counts[k]:,.0f}: {values[k]:.2f}" for k in picks)
         )
     return parts
+
+
+_RUNTIME_EXTRAS: Final = {
+    "behind_s": ("fell behind", "simulated s at most (the latest a sample came after its instant)"),
+}
+"""Extras the runtime adds, by key: their row's label and what the value means."""
 
 
 def _extra_text(value: float | int | str) -> str:
