@@ -41,6 +41,21 @@ def tokens(session: Any, ns: str) -> set[str]:
     return {str(reply.ok.key_expr) for reply in session.liveliness().get(f"{ns}/**", timeout=5.0)}
 
 
+async def token_with(session: Any, ns: str, part: str) -> str:
+    """The one token under ``ns`` with ``part`` in its key, once the stranger sees it.
+
+    A peer does not pass on another peer's tokens: the stranger sees those of a
+    session it is not connected to once Zenoh's gossip has connected the two.
+    """
+    for _ in range(100):  # 10 s at most
+        found = [key for key in await asyncio.to_thread(tokens, session, ns) if part in key]
+        if found:
+            (key,) = found
+            return key
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"no token with {part!r} under {ns!r}")
+
+
 @contextlib.contextmanager
 def declared(session: Any, keys: list[str]) -> Iterator[list[Any]]:
     """Liveliness tokens ``session`` holds under ``keys`` until the block ends."""
@@ -142,8 +157,7 @@ async def test_with_a_key_a_stranger_can_neither_place_move_nor_remove_a_robot()
             stranger(endpoint) as session,
         ):
             await until(lambda: a[0].knows(2) and b[0].knows(1))
-            seen = await asyncio.to_thread(tokens, session, ns)
-            (robot_2_key,) = (key for key in seen if f"/alive/2/{away.zid}/" in key)
+            robot_2_key = await token_with(session, ns, f"/alive/2/{away.zid}/")
             match = SIGNED.fullmatch(robot_2_key)
             assert match is not None  # signed: stamped, with a proof
             forged = [
