@@ -74,9 +74,12 @@ def test_every_bucket_is_delivered(at_ten: Scaled) -> None:
 @pytest.mark.timeout(LIMIT)
 def test_the_trace_starts_at_time_zero_and_nothing_is_before_it(at_ten: Scaled) -> None:
     assert len(at_ten.times) > 100
-    assert at_ten.times[0] == 0.0
-    assert min(at_ten.times) == 0.0  # 25 robots at 0.0, then on
-    assert at_ten.times.count(0.0) >= 25
+    first = at_ten.times[0]
+    # The first sample is taken at the clock's now once time 0 has come: 0.0, or a
+    # hair later on a loaded machine (a millisecond is 0.01 simulated seconds here).
+    assert 0.0 <= first < 0.1
+    assert min(at_ten.times) == first
+    assert at_ten.times[:25] == [first] * 25  # every robot, where it starts
 
 
 WORLD_AHEAD: Final = (
@@ -147,18 +150,21 @@ def test_the_effects_across_processes_are_counted(at_ten: Scaled) -> None:
 
 @pytest.mark.xfail(
     strict=True,
-    reason="at the library's default time_factor (50) across processes a Sink fails its "
-    "first hand-over: 'robot 4 retiring item ... at T: the item's previous event was at "
-    "T + L, and time does not go backwards' (a remote effect is run at the sender's loop "
-    "instant Remote.at, ProcessNetwork._at; the receiving worker's clock maps wall to "
-    "simulated time on its own and lags by more than L / factor, so Environment."
-    "item_arrives stamps the arrival at sent + L, ahead of the receiver's now)",
+    reason="at the library's default time_factor (50) a Sink fails its first hand-over: "
+    "'robot 4 retiring item ... at T: the item's previous event was at T + L, and time does "
+    "not go backwards'. Deliveries._wake_at arms loop.call_at(when) without the clock's timer "
+    "pad; uvloop keeps whole milliseconds, so it goes off up to ~1 ms early (50 ms simulated, "
+    "10 L), _woken runs what was due at the instant armed, and Environment.item_arrives "
+    "stamps the arrival sent + L, ahead of the robots' now. In one process too; not on the "
+    "stdlib loop (CAS_ASYNC_UVLOOP=0)",
 )
 @pytest.mark.timeout(LIMIT)
 def test_the_default_time_factor_delivers_every_bucket(tmp_path: Path) -> None:
-    run = scaled_run(tmp_path, 50.0)
-    assert run.code == 0, run.output
-    assert_all_delivered(run.results)
+    # Three runs: the early timer is a matter of chance (seen in 7 runs of 8).
+    for n in range(3):
+        run = scaled_run(tmp_path / str(n), 50.0)
+        assert run.code == 0, run.output
+        assert_all_delivered(run.results)
 
 
 def lateness(results: dict[str, Any]) -> dict[str, Any]:

@@ -52,10 +52,12 @@ pytestmark = pytest.mark.slow  # a world, two workers and a stranger, a dozen ru
 zenoh = pytest.importorskip("zenoh")
 
 MODES: Final = {
-    "virtual": ("--virtual",),
+    "virtual": ("--virtual", "--set", "mission.buckets=60"),
     "scaled": ("--set", "run.time_factor=5"),
 }
-"""How each run's time goes: virtual, or 5 simulated seconds a wall second (about 5 s)."""
+"""How each run's time goes: virtual (60 buckets: about 10 wall seconds, time for every
+probe), or 5 simulated seconds a wall second (20 buckets, about 5 s)."""
+TARGETS: Final = {"virtual": 60, "scaled": 20}
 FLOOD: Final = 12_000
 SPURIOUS_REPLAYS: Final = 3
 """``control.replayed`` refusals a run counts with no stranger at all, at most (a defect:
@@ -199,7 +201,7 @@ def tokens(stranger: Stranger, namespace: str) -> Sent:
     sent = Sent()
     for name in ("worker/0", "worker/7", "worker/x", "world", "worker/1"):
         key = f"{namespace}/{name}"
-        stranger.hold_token(key, 0.3)  # undeclared: to its watchers, as if it had gone
+        stranger.hold_token(key, 0.1)  # undeclared: to its watchers, as if it had gone
         sent.tokens.append(key)
     return sent
 
@@ -236,6 +238,7 @@ PROBES: Final[dict[str, Probe | None]] = {
 class Probed:
     """What a run with a stranger on its network did."""
 
+    mode: str
     code: int | None
     output: str
     worker_codes: list[int | None]
@@ -279,7 +282,7 @@ def probed_run(tmp: Path, mode: str, probe: Probe | None) -> Probed:
         worker_outputs = [worker.output() for worker in workers]
     results = read_results(out) if (out / "results.json").exists() else None
     trace = (out / "trace.csv").read_bytes() if (out / "trace.csv").exists() else b""
-    return Probed(code, output, worker_codes, worker_outputs, results, trace, namespace, found,
+    return Probed(mode, code, output, worker_codes, worker_outputs, results, trace, namespace, found,
                   sent, during)  # fmt: skip
 
 
@@ -309,7 +312,7 @@ def _completed(probed: Probed) -> dict[str, Any]:
     assert probed.during, f"the run ended before the probe did: it proves nothing\n{probed.output}"
     assert probed.code == 0, probed.output
     assert probed.results is not None, probed.output
-    assert_all_delivered(probed.results)
+    assert_all_delivered(probed.results, TARGETS[probed.mode])
     return probed.results
 
 
