@@ -10,190 +10,38 @@ running when a test ends is killed and waited for.
 
 from __future__ import annotations
 
-import contextlib
-import json
 import os
 import re
 import signal
-import socket
-import subprocess
-import sys
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
 import pytest
 
+from tests.processes_support import (
+    EXIT_LIMIT,
+    RUN_LIMIT,
+    SCENARIO,
+    WORKER_EXIT_LIMIT,
+    WRONG_KEY_LIMIT,
+    assert_all_delivered,
+    free_endpoint,
+    key_file,
+    processes,
+    read_results,
+    run_cli,
+    wait_for_progress,
+    wait_listening,
+)
+
 pytestmark = pytest.mark.slow  # world and worker processes on Zenoh
 
 pytest.importorskip("zenoh")
 
-
-ROOT: Final = Path(__file__).resolve().parents[1]
-SCENARIO: Final = ROOT / "apps" / "fire_brigade" / "scenarios" / "thesis_5_8_2.toml"
 ROBOTS: Final = list(range(1, 26))
 """The scenario's robot ids, in the mission's order (worker ``k`` of ``n`` runs ``[k::n]``)."""
-
-RUN_LIMIT: Final = 45.0
-"""Wall seconds a whole run may take (they take 1-8 s; only a hung one comes near)."""
-EXIT_LIMIT: Final = 10.0
-"""Wall seconds a process may take to exit once its run is over."""
-WORKER_EXIT_LIMIT: Final = 8.0
-"""Wall seconds a worker may take to exit once its world stopped it, or died (about 1 s)."""
-WRONG_KEY_LIMIT: Final = 15.0
-"""Wall seconds a worker with another key than the world's may take to say so (about 1 s)."""
-START_LIMIT: Final = 30.0
-"""Wall seconds until a world listens, or a run shows progress."""
-
-_ENV: Final = {**os.environ, "PYTHONIOENCODING": "utf-8"}
-
-
-@dataclass
-class Process:
-    """A ``python -m cas_async`` process with its output in two files."""
-
-    popen: subprocess.Popen[bytes]
-    stdout: Path
-    stderr: Path
-
-    def wait(self, limit: float) -> int | None:
-        """The exit code, or ``None`` if it is still running after ``limit`` seconds."""
-        try:
-            return self.popen.wait(timeout=limit)
-        except subprocess.TimeoutExpired:
-            return None
-
-    def output(self) -> str:
-        """What it printed so far, stdout then stderr."""
-        return self.stdout.read_text("utf-8", "replace") + self.stderr.read_text("utf-8", "replace")
-
-    def group_alive(self) -> bool:
-        """Whether any process of its session (itself, or a worker it spawned) still runs."""
-        try:
-            os.killpg(self.popen.pid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:  # pragma: no cover - a reused id of another user's group
-            return False
-        return True
-
-    def kill(self) -> None:
-        """Kills it and whatever it spawned, and waits for it."""
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(self.popen.pid, signal.SIGKILL)
-        self.popen.kill()  # nothing when it has exited
-        self.popen.wait(timeout=EXIT_LIMIT)
-
-
-class Processes:
-    """Starts ``python -m cas_async`` processes; :meth:`kill_all` ends every one."""
-
-    def __init__(self, directory: Path) -> None:
-        self._directory = directory
-        self._started: list[Process] = []
-
-    def start(self, name: str, *args: str | os.PathLike[str]) -> Process:
-        stdout, stderr = self._directory / f"{name}.out", self._directory / f"{name}.err"
-        with stdout.open("wb") as out, stderr.open("wb") as err:
-            popen = subprocess.Popen(
-                [sys.executable, "-m", "cas_async", *map(str, args)],
-                cwd=ROOT,
-                env=_ENV,
-                stdin=subprocess.DEVNULL,
-                stdout=out,
-                stderr=err,
-                start_new_session=True,
-            )
-        process = Process(popen, stdout, stderr)
-        self._started.append(process)
-        return process
-
-    def kill_all(self) -> None:
-        for process in self._started:
-            process.kill()
-
-
-@contextlib.contextmanager
-def processes(directory: Path) -> Iterator[Processes]:
-    directory.mkdir(parents=True, exist_ok=True)
-    started = Processes(directory)
-    try:
-        yield started
-    finally:
-        started.kill_all()
-
-
-@dataclass(frozen=True)
-class Finished:
-    code: int
-    output: str
-    left_behind: bool
-    """Whether a process it spawned (a worker) was still running after it exited."""
-
-
-def run_cli(logs: Path, *args: str | os.PathLike[str]) -> Finished:
-    """Runs ``python -m cas_async *args`` to its end; fails the test after :data:`RUN_LIMIT`."""
-    with processes(logs) as started:
-        process = started.start("run", *args)
-        code = process.wait(RUN_LIMIT)
-        if code is None:
-            pytest.fail(f"still running after {RUN_LIMIT} s: {args}\n{process.output()}")
-        deadline = time.monotonic() + EXIT_LIMIT
-        while process.group_alive() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        return Finished(code, process.output(), process.group_alive())
-
-
-def read_results(out: Path) -> dict[str, Any]:
-    data = json.loads((out / "results.json").read_text(encoding="utf-8"))
-    assert isinstance(data, dict)
-    return data
-
-
-def key_file(path: Path, secret: str = "ab" * 32) -> Path:
-    path.write_text(secret + "\n")
-    path.chmod(0o600)  # else a KeyFileWarning
-    return path
-
-
-def free_endpoint() -> str:
-    """A loopback endpoint whose port was free a moment ago."""
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{probe.getsockname()[1]}"
-
-
-def wait_listening(endpoint: str, world: Process) -> None:
-    """Waits until the world's router accepts connections (a worker that finds none gives up)."""
-    port = int(endpoint.rsplit(":", 1)[1])
-    deadline = time.monotonic() + START_LIMIT
-    while time.monotonic() < deadline:
-        if world.popen.poll() is not None:
-            pytest.fail(f"the world exited with {world.popen.returncode}:\n{world.output()}")
-        with socket.socket() as probe:
-            if probe.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        time.sleep(0.1)
-    pytest.fail(f"the world does not listen on {endpoint} after {START_LIMIT} s")
-
-
-def wait_for_progress(world: Process) -> None:
-    """Waits until the world's progress line shows simulated time passing."""
-    deadline = time.monotonic() + START_LIMIT
-    while time.monotonic() < deadline:
-        if re.search(r"t=\d", world.stderr.read_text("utf-8", "replace")):
-            return
-        if world.popen.poll() is not None:
-            pytest.fail(f"the world exited with {world.popen.returncode}:\n{world.output()}")
-        time.sleep(0.05)
-    pytest.fail(f"no progress after {START_LIMIT} s:\n{world.output()}")
-
-
-def assert_all_delivered(result: dict[str, Any]) -> None:
-    assert result["status"] == "completed", result["error"]
-    assert (result["delivered"], result["target"]) == (20, 20)
 
 
 # -- run --processes -----------------------------------------------------------------------
