@@ -67,7 +67,7 @@ from .scenario import (
     sweep_table,
 )
 from .scenario._atomic_files import remove_partial_files
-from .scenario._processes import WorkerLost
+from .scenario._processes import WorkerLost, WorkerRefused
 from .scenario._report import summary_table, write_results
 from .scenario._sweep_plots import write_box_plots
 from .scenario._sweep_report import write_sweep_files
@@ -186,7 +186,9 @@ def _command_run(
             run(session.drive(stop), virtual=scenario.run.virtual)
         if session.refused is not None:
             print(f"error: {session.refused}", file=stderr)
-            return EXIT_FAILED if isinstance(session.refused, WorkerLost) else EXIT_USAGE
+            refused = session.refused
+            lost = isinstance(refused, WorkerLost) and not isinstance(refused, WorkerRefused)
+            return EXIT_FAILED if lost else EXIT_USAGE
         return session.finish()
 
 

@@ -57,12 +57,6 @@ def test_a_lossy_run_across_processes_delivers_every_bucket_as_slowly_as_in_one(
     assert spread["protocol_errors"]["duplicate"] > 0  # resent requests, answered twice
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="across processes results.json says faults: null: the workers' FaultyTransport "
-    "counts what it lost, but ScenarioRun._count_faults reads the world's own transport "
-    "(a MemoryTransport that carries nothing), and Counts has no field for the wire's figures",
-)
 @pytest.mark.timeout(LIMIT)
 def test_the_results_say_what_the_wire_lost_across_processes(lossy: dict[int, Lossy]) -> None:
     alone, spread = lossy[1].results["faults"], lossy[2].results["faults"]

@@ -67,12 +67,17 @@ class Children:
             watcher.cancel()
 
     async def _watch(self, child: asyncio.subprocess.Process) -> None:
-        """Passes the child's stderr on, keeps its last lines, reports its exit."""
+        """Passes the child's stderr on, keeps its last lines, reports its exit.
+
+        A child's own ``error: ...`` line is kept, not passed on: the world's error
+        names the worker and repeats it, once.
+        """
         lines: list[str] = []
         assert child.stderr is not None
         async for raw in child.stderr:
             line = raw.decode(errors="replace")
-            sys.stderr.write(line)
+            if not line.startswith("error: "):
+                sys.stderr.write(line)
             lines.append(line.rstrip())
             del lines[:-STDERR_LINES]
         code = await child.wait()

@@ -90,6 +90,9 @@ message): a token is a hint that a process is gone, never proof (anyone on the
 network may say what they like about tokens)."""
 _TAG: Final = 16
 
+_MATCHING_POLL: Final = 0.01
+"""Wall seconds between two looks at whether a publisher has a subscriber."""
+
 
 class Remote(msgspec.Struct, frozen=True, array_like=True):
     """An effect on another process's robot, due at loop instant ``at`` (see ``_network``).
@@ -199,9 +202,11 @@ class Stop(msgspec.Struct, frozen=True, tag="stop"):
 
 
 class Failed(msgspec.Struct, frozen=True, tag="failed"):
-    """A worker failed (its robots stopped): why."""
+    """A worker failed (its robots stopped), or refused the run's configuration: why."""
 
     error: str
+    configuration: bool = False
+    """True: the scenario cannot run on the worker's host (before its robots existed)."""
 
 
 class Bye(msgspec.Struct, frozen=True, tag="bye"):
@@ -294,6 +299,22 @@ class Channel:
         if self._secret is not None:
             payload += _tag(self._secret, key, payload)
         self._session.put(key, payload, congestion_control=self._block)
+
+    async def send_when_heard(self, suffix: str, message: Control, limit: float) -> None:
+        """Sends ``message`` once someone subscribes to ``suffix`` (or ``limit`` wall s passed).
+
+        For a session that has just connected, with one thing to say before it
+        closes: a put before the subscription is known there would go nowhere.
+        """
+        publisher = self._session.declare_publisher(self._prefix + suffix)
+        try:
+            for _ in range(max(1, round(limit / _MATCHING_POLL))):
+                if publisher.matching_status.matching:
+                    break
+                await asyncio.sleep(_MATCHING_POLL)
+        finally:
+            publisher.undeclare()
+        self.send(suffix, message)
 
     def close(self) -> None:
         """Stops receiving (the session stays open); idempotent."""

@@ -18,6 +18,7 @@ import numpy.typing as npt
 from ..sim._environment import Environment
 from ._app import Mission
 from ._objective import Objective
+from ._processes import WorkerLost
 from ._results import RunResult, RunStatus
 from ._trace import Trace
 
@@ -25,8 +26,15 @@ __all__ = ["PositionMeasures", "mark_failed", "measure_end"]
 
 
 def mark_failed(result: RunResult, error: BaseException) -> None:
-    """Marks the run failed, with the error and the traceback of what raised."""
+    """Marks the run failed, with the error and the traceback of what raised.
+
+    A lost worker has none: the error names the worker and its robots, and the
+    world's own stack, where the loss was noticed, says nothing more.
+    """
     result.status, result.error = RunStatus.FAILED, str(error)
+    if isinstance(error, WorkerLost):
+        result.traceback = None
+        return
     cause = error.__cause__ or error
     result.traceback = "".join(traceback.format_exception(cause)).rstrip()
 

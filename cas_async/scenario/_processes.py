@@ -8,7 +8,7 @@ from typing import TypeVar
 from .._errors import CasError
 from .._wall import wall_bounded
 
-__all__ = ["WorkerLost", "within"]
+__all__ = ["WorkerLost", "WorkerRefused", "within"]
 
 T = TypeVar("T")
 
@@ -20,6 +20,14 @@ class WorkerLost(CasError):
 
     A run failure (exit code 1), not a configuration error: the set-up was right,
     a process of it was not there.
+    """
+
+
+class WorkerRefused(WorkerLost):
+    """A worker refused the run during set-up: the configuration fails on its host.
+
+    Its app cannot be imported there, say, or its scenario is refused there: a
+    configuration error (exit code 2), which the worker named.
     """
 
 

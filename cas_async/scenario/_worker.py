@@ -74,6 +74,10 @@ HEARTBEAT: Final = 0.05
 COUNTS_EVERY: Final = 1.0
 """Wall seconds between two counts a worker reports (the last ones come with its ``Bye``)."""
 _HELLO_EVERY: Final = 0.25
+_REFUSAL_LIMIT: Final = 5.0
+"""Wall seconds a worker that refuses the run waits for the world to hear it."""
+_REFUSAL_FLUSH: Final = 0.2
+"""Wall seconds a worker that refuses the run keeps its session open for its word to go."""
 
 
 async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
@@ -113,6 +117,8 @@ async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
         while not answer.done():
             if time.monotonic() > deadline:
                 raise WorkerLost(f"worker: no answer from a world at {connect} (a wrong key?)")
+            if not list(session.info.routers_zid()):  # it was there: zenoh.open connected
+                raise WorkerLost(f"worker: the world at {connect} went away before it answered")
             lobby.send(f"hello/{nonce}", Hello(nonce, time.time(), os.getpid()))
             with contextlib.suppress(WorkerLost):
                 await within(asyncio.shield(answer), _HELLO_EVERY, "the world's welcome")
@@ -142,7 +148,11 @@ def run_worker(
         WorkerLost: the world did not answer.
     """
     welcome = asyncio.run(join(connect, key, 60.0))
-    scenario = scenario_from_data(Path(welcome.path), welcome.data)
+    try:
+        scenario = scenario_from_data(Path(welcome.path), welcome.data)
+    except ConfigurationError as exc:  # its app cannot be imported here, say
+        asyncio.run(_refuse(connect, key, welcome, str(exc)))
+        raise
     if not quiet:
         share = welcome.shares[welcome.index]
         print(
@@ -155,6 +165,22 @@ def run_worker(
         with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
             return runner.run(worker.run())
     return run(worker.run())
+
+
+async def _refuse(connect: str, key: SwarmKey | None, welcome: Welcome, error: str) -> None:
+    """Tells the world that the run cannot start here, and why (it stops waiting for us)."""
+    zenoh = import_zenoh()
+    config = loopback_config(mode="client", listen=[], connect=[connect])
+    with contextlib.suppress(Exception):  # the error is said here anyway
+        session = await asyncio.to_thread(zenoh.open, config)
+        try:
+            channel = Channel(session, welcome.namespace, welcome.index, key, lambda *_: None)
+            await channel.send_when_heard(
+                "world", Failed(error, configuration=True), _REFUSAL_LIMIT
+            )
+            await asyncio.sleep(_REFUSAL_FLUSH)  # a put on its way when the session closes is lost
+        finally:
+            session.close()
 
 
 class _Worker:

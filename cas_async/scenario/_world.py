@@ -57,7 +57,7 @@ from ._loader import DEFAULT_LATENCY, Scenario
 from ._lobby import Lobby
 from ._observer import Observation, Observer
 from ._partition import partition
-from ._processes import WorkerLost
+from ._processes import WorkerLost, WorkerRefused
 from ._results import RunStatus
 
 __all__ = ["World"]
@@ -133,7 +133,7 @@ class World:
         self._lost: BaseException | None = None
         self._news: asyncio.Event | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._pids: dict[int, int] = {}  # a spawned worker's process id -> its index
+        self._pids: dict[int, int] = {}  # a worker's process id (its hello's) -> its index
         self._shares: list[list[RobotId]] = []
         self._waited: dict[int, float] = {}  # a worker -> wall seconds it waited (its Bye)
         self.rounds = 0
@@ -420,10 +420,13 @@ class World:
         index = self._pids.get(pid)
         if code == 0 and index is not None and index in self._byes:
             return
-        when = "during set-up" if len(self._ready) < self._workers else "during the run"
+        setting_up = len(self._ready) < self._workers
+        when = "during set-up" if setting_up else "during the run"
         who = "a worker" if index is None else f"worker {index}"
+        # Exit code 2 is a worker's configuration error: the run cannot start on its host.
+        lost = WorkerRefused if setting_up and code == 2 else WorkerLost
         self._lose(
-            WorkerLost(
+            lost(
                 f"{who} is gone: its process {pid} exited with code {code} {when}: {said}"
                 + ("" if index is None else self._lost_robots([index]))
             )
@@ -436,10 +439,15 @@ class World:
         """Waits until ``condition()`` holds, for at most ``seconds`` of wall time."""
         news = self._news
         assert news is not None
-        deadline = time.monotonic() + seconds
+        began = time.monotonic()
+        deadline = began + seconds
         while not condition():
             if self._lost is not None:
                 raise self._lost
+            # A worker that joined and whose token went says something soon, or is gone.
+            gone = self._liveness.silent(sorted(set(self._pids.values())), began)
+            if gone:
+                raise self._liveness.lost(gone, f" while the world waited for {what}")
             if time.monotonic() > deadline:
                 raise WorkerLost(f"gave up after {seconds:g} s waiting for {what}")
             news.clear()
@@ -479,6 +487,8 @@ class World:
                     self._heard[sender] = max(self._heard.get(sender, 0.0), message.next_event)
             case Ready():
                 self._ready.add(sender)
+            case Failed(error=error, configuration=True):
+                self._lose(WorkerRefused(f"worker {sender} refused the run: {error}"))
             case Failed(error=error):
                 self._lose(WorkerLost(f"worker {sender} failed: {error}"))
             case Bye(counts=counts, waited=waited):
