@@ -5,9 +5,8 @@ author's choosing. Everything the runtime needs lives in one :class:`LayerRuntim
 per layer, held by the robot and reached through the layer's one attribute ``_cas``:
 
 * **internal messages** (thesis ``SendUp``/``SendDown``/``ReceiveIntraMsg``):
-  stamped, counted and carried through every intermediate layer *when sent*:
-  each intermediate layer forwards it (and counts it) without its hooks being
-  called, so a layer busy in a long hook never holds up messages passing by;
+  stamped, counted and carried through the layers between *when sent*, so a layer
+  busy in a long hook never holds up messages passing by;
 * **external messages** go out through the robot's :class:`~cas_async._outbox.Outbox`;
   those its :class:`~cas_async._reception.Reception` accepts arrive in :meth:`accept_external`;
 * **requests**: a reply is matched to its waiting request as it arrives, before
@@ -21,9 +20,8 @@ per layer, held by the robot and reached through the layer's one attribute ``_ca
   ``store_intra_msg``), robots that joined or left (``on_robot_joined``,
   ``on_robot_left``), timers that went off (``on_timer``), and ``inner_process()``
   again; until the robot cancels the task;
-* **back-pressure** (:mod:`cas_async._backpressure`): after a hook whose sends filled
-  another layer's inbox, this layer waits until that inbox has drained;
-* **timers** (:mod:`cas_async._timers`), disarmed when the robot stops.
+* **back-pressure** (:mod:`cas_async._backpressure`): after a hook that filled another
+  layer's inbox, this layer waits until it has drained; **timers** (:mod:`._timers`).
 """
 
 from __future__ import annotations
@@ -189,10 +187,7 @@ class LayerRuntime:
             self.send_internal(level, msg if msg.msg_id == 0 else owned(msg))
 
     def neighbour_ok(self, level: Level, msg: Message) -> bool:
-        """Whether the robot runs and has a layer at ``level`` (above or below this one).
-
-        If there is none, the drop is counted as ``no_layer_above`` or ``no_layer_below``.
-        """
+        """Whether the robot runs and has a layer at ``level``; else counts the drop."""
         if not self.live:
             self.check_live()
         if 0 <= level < len(self.stack):
@@ -402,13 +397,8 @@ class LayerRuntime:
             raise RuleViolation(f"{self.log.prefix}no layer {where} to ask")
         msg = owned(msg)
         msg.msg_type = _NEGOTIATION
-        self.outbox.stamp(msg, self.level, level)
+        self.send_internal(level, msg)  # answered once that layer's task has run
         waiting = self.expect(msg, self.outbox.robot_id, False, timeout)
-        counters = self.counters
-        counters.sent_internal += 1
-        by_type = counters.internal_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
-        self.carry(msg)
         asked = self.stack[level].flow
         self.flow.asking(asked)  # it handles nothing while it waits
         try:
