@@ -34,7 +34,7 @@ import numpy.typing as npt
 from .._errors import ConfigurationError
 from .._virtual_loop import VirtualTimeLoop
 from ..scenario import ScenarioRun
-from ..sim._items import ItemEvent, ItemEventKind
+from ..sim._item_events import ItemEvent, ItemEventKind
 from ..transport import InsecureBindWarning
 from ._protocol import encode_frame, hello, text
 from ._server import ViewServer, is_loopback

@@ -35,7 +35,7 @@ from typing import NamedTuple, Protocol, final
 from .._clock import Clock
 from .._types import RobotId
 from ..sim._environment import Environment
-from ..sim._items import ItemEvent, ItemEventKind
+from ..sim._item_events import ItemEvent, ItemEventKind
 from ._results import RunResult
 from ._trace import Trace
 

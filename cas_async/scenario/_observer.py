@@ -29,7 +29,7 @@ import msgspec
 from .._errors import SimulationError
 from .._types import RobotId
 from ..sim._environment import Environment
-from ..sim._items import ItemEvent, ItemEventKind
+from ..sim._item_events import ItemEvent, ItemEventKind
 from ..sim._kinematics import Motion
 
 __all__ = ["ItemRecord", "MotionRecord", "Observation", "Observer", "Recorder", "mirror_of"]

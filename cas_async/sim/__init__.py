@@ -20,7 +20,8 @@ from .._phases import Phase, check_phases
 from .._pose import normalize_angle
 from .._profiles import closing_time
 from ._environment import Environment
-from ._items import ItemEvent, ItemEventKind, ItemLedger
+from ._item_events import ItemEvent, ItemEventKind
+from ._items import ItemLedger
 from ._kinematics import Motion, check_turn_rate
 from ._middleware import SimulatedHands, SimulatedMiddleware
 
