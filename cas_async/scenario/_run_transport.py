@@ -13,7 +13,7 @@ from ..transport._udp import UdpTransport
 from ..transport._zenoh import ZenohTransport
 from ._loader import Scenario
 
-__all__ = ["check_key", "faulty", "run_transport"]
+__all__ = ["check_key", "fault_counts", "faulty", "run_transport"]
 
 
 def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
@@ -54,3 +54,9 @@ def faulty(scenario: Scenario, transport: Transport, clock: Clock) -> Transport:
         return transport
     seed = scenario.run.seed if scenario.faults.seed is None else scenario.faults.seed
     return FaultyTransport(transport, faults, seed=seed, clock=clock)
+
+
+def fault_counts(transport: Transport) -> dict[str, int] | None:
+    """What the ``[faults]`` on ``transport``'s wire did so far, or ``None`` without faults."""
+    wire = transport.inner if isinstance(transport, AuthenticatedTransport) else transport
+    return wire.stats if isinstance(wire, FaultyTransport) else None

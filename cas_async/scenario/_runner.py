@@ -30,8 +30,6 @@ from .._swarm import Swarm
 from .._swarm_key import SwarmKey
 from .._virtual_loop import VirtualTimeLoop
 from ..sim._environment import Environment
-from ..transport._authenticated import AuthenticatedTransport
-from ..transport._faulty import FaultyTransport
 from ._app import Mission, objective_of
 from ._gc_policy import young_generation_for
 from ._layers import check_built
@@ -42,7 +40,7 @@ from ._objective import CallbackWatch, Objective, not_distributable
 from ._observer import Observer, mirror_of
 from ._progress import Progress
 from ._results import RunProgress, RunResult, RunStatus
-from ._run_transport import run_transport
+from ._run_transport import fault_counts, run_transport
 from ._sampled import sampled_until_end
 from ._trace import Trace, TraceCsv
 from ._windowed import WindowedRun
@@ -494,10 +492,7 @@ class ScenarioRun:
         if self._world is not None:  # the robots' wires are the workers'
             self.result.faults = self._world.fault_counts()
             return
-        transport = self._transport
-        wire = transport.inner if isinstance(transport, AuthenticatedTransport) else transport
-        if isinstance(wire, FaultyTransport):
-            self.result.faults = wire.stats
+        self.result.faults = fault_counts(self._transport)
 
     def _close_progress(self, *, final: bool) -> None:
         if self._progress is not None:
