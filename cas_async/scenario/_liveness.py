@@ -7,6 +7,13 @@ goes, the world asks whether a token of that name still answers, and only when
 none does is the worker *suspect*: it then has :data:`~._control.SUSPECT_LIMIT`
 wall seconds to say something. Any worker silent for ``run.window_limit`` is lost
 too (frozen, or cut off). A lost worker is named with its robots.
+
+Tokens that no process of the run holds are counted (:attr:`Liveness.tokens`,
+in ``results.json``'s ``protocol_errors``), and change nothing: ``token.unknown``,
+a token that came or went under a name of the run's namespace that is none of its
+processes' (``worker/7`` of two workers, ``worker/x``); ``token.forged``, the
+going of a token whose process still holds it (the world's own, or a worker's
+whose token still answers): someone else's token of that name went.
 """
 
 from __future__ import annotations
@@ -51,21 +58,33 @@ class Liveness:
         self._gone: set[int] = set()  # workers that said Bye: their token goes, rightly
         self._checks: list[asyncio.Task[None]] = []
         self._subscriber: Any = None
+        self.tokens: dict[str, int] = {}
+        """Tokens that no process of the run holds, counted by reason (``token.<reason>``)."""
 
     def watch(self, session: Any, namespace: str) -> None:
-        """Follows the workers' liveliness tokens under ``namespace`` (call on the loop)."""
+        """Follows the liveliness tokens under ``namespace`` (call on the loop).
+
+        The world holds ``{namespace}/world`` from before this call until after
+        :meth:`close`: its going meanwhile is a stranger's token of that name.
+        """
         loop = asyncio.get_running_loop()
+        workers = {f"{namespace}/worker/{index}": index for index in range(self._workers)}
+        world = f"{namespace}/world"
 
         def token(sample: Any) -> None:  # on a Zenoh thread
-            if sample.kind != import_zenoh().SampleKind.DELETE:
-                return
             key = str(sample.key_expr)
-            index = key.rsplit("/", 1)[1]
-            if index.isdigit() and int(index) < self._workers:
-                with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
-                    loop.call_soon_threadsafe(self._check, session, key, int(index))
+            gone = sample.kind == import_zenoh().SampleKind.DELETE
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                if key in workers:
+                    if gone:
+                        loop.call_soon_threadsafe(self._check, session, key, workers[key])
+                elif key == world:
+                    if gone:
+                        loop.call_soon_threadsafe(self._count, "token.forged")
+                else:
+                    loop.call_soon_threadsafe(self._count, "token.unknown")
 
-        self._subscriber = session.liveliness().declare_subscriber(f"{namespace}/worker/*", token)
+        self._subscriber = session.liveliness().declare_subscriber(f"{namespace}/**", token)
 
     def heard(self, worker: int) -> None:
         """``worker`` said something signed: it lives."""
@@ -112,12 +131,18 @@ class Liveness:
                 self._subscriber.undeclare()
             self._subscriber = None
 
+    def _count(self, reason: str) -> None:
+        self.tokens[reason] = self.tokens.get(reason, 0) + 1
+
     def _check(self, session: Any, key: str, index: int) -> None:
         self._checks.append(asyncio.ensure_future(self._suspect_unless_alive(session, key, index)))
 
     async def _suspect_unless_alive(self, session: Any, key: str, index: int) -> None:
         """A worker whose token no longer answers is suspect: it has SUSPECT_LIMIT to speak."""
-        if index in self._gone or await asyncio.to_thread(token_lives, session, key):
-            return  # another session's token of that name went: not the worker's
+        if index in self._gone:
+            return
+        if await asyncio.to_thread(token_lives, session, key):
+            self._count("token.forged")  # another session's token of that name went
+            return
         self._suspect.add(index)
         self._news()

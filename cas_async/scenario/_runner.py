@@ -266,7 +266,7 @@ class ScenarioRun:
                 if isinstance(loop, VirtualTimeLoop):  # no robots here: time stands still
                     loop.run_windows(Held(self._world.tick))
             starting = asyncio.ensure_future(
-                self._swarm.__aenter__() if self._world is None else self._world.start()
+                self._swarm.__aenter__() if self._world is None else self._world.start(self._clock)
             )
             stopped = asyncio.ensure_future(self._stop.wait())
             try:

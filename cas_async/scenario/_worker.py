@@ -14,7 +14,9 @@ wall-clock instant the world's :class:`~._control.Go` names.
 A worker stops by itself when its world is gone: the world beats every
 :data:`~._control.BEAT_EVERY`; when its liveliness token goes (a hint, not proof)
 it has :data:`~._control.SUSPECT_LIMIT` to say something, and any silence longer
-than ``run.window_limit`` ends the worker all the same.
+than ``run.window_limit`` ends the worker all the same. A token of the world's
+that goes while the world's still answers is a stranger's: counted
+(``token.forged``, in the counts it reports), and nothing more.
 """
 
 from __future__ import annotations
@@ -219,6 +221,7 @@ class _Worker:
         self._session: Any = None
         self._wire: Transport | None = None  # the robots' transport: the network, faulty or not
         self._watching: list[asyncio.Future[None]] = []  # token checks under way
+        self._forged = 0  # the world's token went while it still answered: a stranger's
 
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
@@ -317,6 +320,8 @@ class _Worker:
     def _counts(self) -> Counts:
         counts = self._swarm.message_counts()
         refused = {} if self._channel is None else dict(self._channel.refused)
+        if self._forged:
+            refused["token.forged"] = self._forged
         faults = self._wire.stats if isinstance(self._wire, FaultyTransport) else None
         deliveries = Deliveries.of()
         return Counts(
@@ -418,7 +423,9 @@ class _Worker:
     async def _suspect_world_unless_alive(self) -> None:
         """The world's token no longer answers: it has SUSPECT_LIMIT to say something."""
         key = f"{self._welcome.namespace}/world"
-        if not await asyncio.to_thread(token_lives, self._session, key):
+        if await asyncio.to_thread(token_lives, self._session, key):
+            self._forged += 1  # another session's token of that name went: counted
+        else:
             self._world_suspect = True
 
     def _check_world(self) -> None:

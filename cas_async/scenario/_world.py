@@ -24,6 +24,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, Final
 
+from .._clock import Clock, ScaledClock
 from .._errors import ConfigurationError
 from .._swarm_key import SwarmKey
 from .._types import RobotId
@@ -59,9 +60,13 @@ from ._observer import Observation, Observer
 from ._partition import partition
 from ._processes import WorkerLost, WorkerRefused
 from ._results import RunStatus
+from ._tally import summed_faults, summed_messages
 
 __all__ = ["World"]
 
+GO_AHEAD: Final = 0.5
+"""Wall seconds between the world's :class:`Go` and the epoch it names (scaled time): time
+for it to reach every worker."""
 STOP_LIMIT: Final = 10.0
 """Wall seconds the world waits for its workers' last counts, all together."""
 
@@ -168,8 +173,13 @@ class World:
         """The robots each worker runs."""
         return [list(share) for share in self._shares]
 
-    async def start(self) -> None:
+    async def start(self, clock: Clock) -> None:
         """Opens the router, starts (or awaits) the workers, and starts the run.
+
+        On scaled time the run starts at a wall-clock instant a moment ahead (the
+        epoch its :class:`Go` names): the workers' clocks and ``clock``, the
+        world's own, all start at it, and this returns once it has come, so that
+        the world's samples and progress are labelled with the robots' time.
 
         Raises:
             ConfigurationError: the router cannot listen.
@@ -206,8 +216,14 @@ class World:
             await self._children.spawn(self._workers, self.endpoint, self._key)
         limit = self._scenario.run.window_limit
         await self._until(lambda: len(self._ready) >= self._workers, limit, "workers to be ready")
-        epoch = time.time() + 0.5 if not self._scenario.run.virtual else 0.0
+        if self._scenario.run.virtual:
+            channel.send("all", Go(0.0))
+            return
+        epoch = time.time() + GO_AHEAD
+        if isinstance(clock, ScaledClock):
+            clock.start_at_wall(epoch)
         channel.send("all", Go(epoch))
+        await clock.sleep_until(0.0)  # nothing before time 0: the robots start then
 
     async def coordinate(
         self, observer: Observer, done: Callable[[], bool], stop: asyncio.Event
@@ -338,17 +354,19 @@ class World:
     def stats(self) -> dict[str, float | int | str]:
         """What the distribution cost: workers, windows, the longest wait of a worker.
 
-        ``worker_waited_s``: the most wall seconds a worker spent waiting for the
-        others' windows and for grants. On scaled time instead, how many effects
-        came from another worker after their instant (``late_effects``) and the
-        most wall seconds one came late (``most_late_s``): how far the workers
-        fell behind each other.
+        ``cross_process_effects``: the effects (datagrams, hand-over steps) from a
+        worker's robots to another's. ``worker_waited_s``: the most wall seconds a
+        worker spent waiting for the others' windows and for grants. On scaled
+        time instead, how many effects came from another worker after their
+        instant (``late_effects``) and the most wall seconds one came late
+        (``most_late_s``): how far the workers fell behind each other.
         """
         waited = max(self._waited.values(), default=0.0)
         if not self._scenario.run.virtual:  # scaled time: what came late, and how late
             counts = self._counts.values()
             return {
                 "workers": self._workers,
+                "cross_process_effects": self.effects,
                 "late_effects": sum(c.late for c in counts),
                 "most_late_s": max((c.most_late for c in counts), default=0.0),
             }
@@ -361,38 +379,22 @@ class World:
 
     def fault_counts(self) -> dict[str, int] | None:
         """The ``[faults]`` counts of every worker's robots, summed (``None``: no faults)."""
-        reports = [counts.faults for counts in self._counts.values() if counts.faults is not None]
-        if not reports:
-            return None
-        total: dict[str, int] = {}
-        for faults in reports:
-            for name, n in faults.items():
-                total[name] = total.get(name, 0) + n
-        return total
+        return summed_faults(self._counts.values())
 
     def message_counts(self) -> tuple[dict[str, dict[str, int]], dict[str, int]]:
         """Every worker's message counts by kind and class, and drop reasons, summed.
 
         A lost worker's are its last report's. The control plane's refusals, the
-        world's and the workers', are drops too (``control.*``).
+        world's and the workers', are drops too (``control.*``), and so are the
+        liveliness tokens no process of the run holds (``token.*``, see
+        :mod:`._liveness`).
         """
-        total: dict[str, dict[str, int]] = {"internal": {}, "external": {}}
-        dropped: dict[str, int] = {}
-        reports = list(self._counts.values())
-        for counts in reports:
-            for kind, by_class in (("internal", counts.internal), ("external", counts.external)):
-                for name, n in by_class.items():
-                    total[kind][name] = total[kind].get(name, 0) + n
-            for drops in (counts.dropped, counts.refused):
-                for reason, n in drops.items():
-                    dropped[reason] = dropped.get(reason, 0) + n
-        for refused in (
+        return summed_messages(
+            self._counts.values(),
             {} if self._channel is None else self._channel.refused,
             {} if self._lobby is None else self._lobby.refused,
-        ):
-            for reason, n in refused.items():
-                dropped[reason] = dropped.get(reason, 0) + n
-        return total, dropped
+            self._liveness.tokens,
+        )
 
     async def close(self) -> None:
         """Closes the channels and the router; every child process is gone afterwards."""
@@ -483,6 +485,7 @@ class World:
                 if k >= 0:
                     self._windows.setdefault(k, {})[sender] = message
                 else:  # scaled time: its robots' records so far, and where its time is
+                    self.effects += len(message.remote)
                     self._flowing.append(message.observation)
                     self._heard[sender] = max(self._heard.get(sender, 0.0), message.next_event)
             case Ready():
