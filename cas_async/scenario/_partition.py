@@ -18,7 +18,7 @@ from typing import Literal, Protocol
 from .._types import RobotId
 from ..sim._environment import Environment
 
-__all__ = ["PartitionKind", "Partitioner", "partition"]
+__all__ = ["PartitionKind", "Partitioner", "lost_robots", "partition"]
 
 PartitionKind = Literal["region", "round_robin"]
 
@@ -85,3 +85,13 @@ def _check(groups: list[list[RobotId]], robots: Sequence[RobotId], workers: int)
         raise ValueError(f"the app's partition must be {workers} groups, none empty")
     if sorted(flat) != sorted(robots):
         raise ValueError("the app's partition must hold every robot exactly once")
+
+
+def lost_robots(shares: Sequence[Sequence[RobotId]], workers: Sequence[int]) -> str:
+    """``; its N robots are lost: 1, 3, ...``: what a loss of these workers costs, for its error."""
+    ids = [robot for w in workers if w < len(shares) for robot in shares[w]]
+    if not ids:
+        return ""
+    shown = ", ".join(str(i) for i in ids[:20])
+    more = f", ... ({len(ids) - 20} more)" if len(ids) > 20 else ""
+    return f"; {'their' if len(workers) > 1 else 'its'} {len(ids)} robots are lost: {shown}{more}"

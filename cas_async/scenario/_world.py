@@ -21,7 +21,7 @@ import asyncio
 import contextlib
 import secrets
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any, Final
 
 from .._clock import Clock, ScaledClock
@@ -57,7 +57,7 @@ from ._liveness import Liveness
 from ._loader import DEFAULT_LATENCY, Scenario
 from ._lobby import Lobby
 from ._observer import Observation, Observer
-from ._partition import partition
+from ._partition import lost_robots, partition
 from ._processes import WorkerLost, WorkerRefused
 from ._results import RunStatus
 from ._tally import summed_faults, summed_messages
@@ -132,7 +132,12 @@ class World:
         self._windows: dict[int, dict[int, Window]] = {}  # k -> worker -> its window
         self._flowing: list[Observation] = []  # scaled time: records not applied yet
         self._heard: dict[int, float] = {}  # scaled time: each worker's simulated time heard
-        self._liveness = Liveness(workers, scenario.run.window_limit, self._lost_robots, self.tick)
+        self._liveness = Liveness(
+            workers,
+            scenario.run.window_limit,
+            lambda who: lost_robots(self._shares, who),
+            self.tick,
+        )
         self._beaten = 0.0  # when the world last said it lives (Beat)
         self._token_of_world: Any = None
         self._lost: BaseException | None = None
@@ -430,7 +435,7 @@ class World:
         self._lose(
             lost(
                 f"{who} is gone: its process {pid} exited with code {code} {when}: {said}"
-                + ("" if index is None else self._lost_robots([index]))
+                + ("" if index is None else lost_robots(self._shares, [index]))
             )
         )
 
@@ -460,17 +465,6 @@ class World:
             self._lost = lost
         if self._news is not None:
             self._news.set()
-
-    def _lost_robots(self, workers: Sequence[int]) -> str:
-        """``; its N robots are lost: 1, 3, ...`` for these workers' robots."""
-        ids = [robot for w in workers if w < len(self._shares) for robot in self._shares[w]]
-        if not ids:
-            return ""
-        shown = ", ".join(str(i) for i in ids[:20])
-        more = f", ... ({len(ids) - 20} more)" if len(ids) > 20 else ""
-        return (
-            f"; {'their' if len(workers) > 1 else 'its'} {len(ids)} robots are lost: {shown}{more}"
-        )
 
     # -- what comes in -----------------------------------------------------------------
 
