@@ -117,14 +117,6 @@ async def test_a_handler_that_raises_is_counted_and_the_rest_goes_on(link: Link)
         world.close()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Channel keeps one count per sender for all its subscriptions, but each Zenoh "
-    "callback subscriber runs on its own thread: a worker's messages under ctl/win/<i> and "
-    "ctl/world reach the world's ThreadInbox out of order, and the later-counted one taken "
-    "first makes the other a 'replay' (control.replayed in a run no stranger touched; a "
-    "worker's last Window before its Bye can be lost so)",
-)
 async def test_messages_of_one_sender_under_two_keys_are_all_taken(link: Link) -> None:
     taken = Taken()
     world = Channel(link.router, "ns", WORLD, KEY, taken)

@@ -6,8 +6,10 @@ names the run, the sender and the sender's count of messages so far, and with a
 swarm key carries an HMAC-SHA256 tag over the key expression and the envelope:
 
 * a message of another run, or one whose tag does not check, is refused;
-* a message whose count is not above the last one taken from its sender is a
-  replay, refused and counted (a sender's count only grows);
+* a message whose count is not above the last one taken from its sender under
+  its key is a replay, refused and counted (a sender's count only grows; the tag
+  covers the key, so a replay keeps it; under two keys, two subscriptions may
+  deliver a sender's messages a little out of order);
 * a message that does not decode, or that its handler cannot apply, is refused
   and counted, and the rest of the batch goes on.
 
@@ -272,7 +274,7 @@ class Channel:
         self._handle = handle
         self._on_refused = refused
         self._count = 0
-        self._seen: dict[int, int] = {}  # sender -> its highest count taken
+        self._seen: dict[tuple[int, str], int] = {}  # (sender, key) -> the highest count taken
         self._inbox: ThreadInbox[tuple[str, bytes]] = ThreadInbox(
             asyncio.get_running_loop(), self._drain
         )
@@ -347,10 +349,13 @@ class Channel:
             if envelope.run != self._namespace:
                 self._refuse(key, "other_run")
                 continue
-            if envelope.count <= self._seen.get(envelope.sender, 0):
+            # By key: one sender's messages under one key come in the order sent, but
+            # under two keys through two subscriptions (two threads), not always.
+            seen = (envelope.sender, key)
+            if envelope.count <= self._seen.get(seen, 0):
                 self._refuse(key, "replayed")
                 continue
-            self._seen[envelope.sender] = envelope.count
+            self._seen[seen] = envelope.count
             try:
                 self._handle(key[len(self._prefix) :], envelope.sender, message)
             except Exception:
