@@ -288,6 +288,7 @@ def decode_or_decode_error(data: bytes) -> None:
         wire_values.map(lambda value: PREFIX + msgpack.packb(value)),
     )
 )
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_random_and_mutated_bytes_only_raise_decode_error(data: bytes) -> None:
     decode_or_decode_error(data)
 
@@ -313,6 +314,7 @@ def random_bodies(draw: st.DrawFn) -> bytes:
     return PREFIX + array_of(items)
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=random_bodies())
 def test_random_fields_under_a_valid_header_only_raise_decode_error(data: bytes) -> None:

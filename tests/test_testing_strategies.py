@@ -60,6 +60,7 @@ class KitchenSink(Message):
 SINK_MESSAGES = [KitchenSink, Inner]
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 @settings(max_examples=150, deadline=None)
 @given(strategy_for(KitchenSink))
 def test_every_kind_of_field_survives_the_codec(msg: KitchenSink) -> None:

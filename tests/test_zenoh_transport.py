@@ -355,6 +355,7 @@ async def test_what_a_robot_sends_as_soon_as_it_joins_is_its_own() -> None:
             assert sorted(int(text) for text in texts(a[0])) == list(range(2, 2 + bursts * burst))
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 async def test_what_a_robot_sends_just_before_it_leaves_is_its_own() -> None:
     # Zenoh withdraws a token ahead of the data still on its way: the last words of a
     # robot that leaves (its reply, its goodbye) must not arrive from nobody.

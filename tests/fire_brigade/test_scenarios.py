@@ -51,6 +51,7 @@ def test_shipped_scenario_delivers_every_bucket(name: str) -> None:
         assert len(trace.exchange_counts) == 0
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_same_seed_same_run() -> None:
     first, _, _ = run_checked(SCENARIOS / "thesis_5_8_1.toml", ["run.seed=7"])
     again, _, _ = run_checked(SCENARIOS / "thesis_5_8_1.toml", ["run.seed=7"])

@@ -100,6 +100,7 @@ def test_a_viewer_that_never_reads_changes_nothing_the_run_measures() -> None:
     assert stats["skipped"] > 0  # ...and most could not go: the latest replaced the one waiting
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_pacing_holds_a_virtual_run_and_changes_nothing_it_measures() -> None:
     scenario = FIRE / "thesis_5_8_2.toml"
     alone, _ = _run(scenario, None)

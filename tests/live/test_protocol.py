@@ -89,6 +89,7 @@ def _check_against_trace(seen, out: Path) -> None:  # type: ignore[no-untyped-de
     assert end["makespan"] == results["makespan"]
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_every_frame_is_the_trace_row_of_its_instant(tmp_path: Path) -> None:
     out = tmp_path / "run"
     scenario = FIRE / "thesis_5_8_2.toml"
@@ -117,6 +118,7 @@ def test_every_frame_is_the_trace_row_of_its_instant(tmp_path: Path) -> None:
     assert (again / "trace.csv").read_bytes() == (out / "trace.csv").read_bytes()
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_frames_are_capped_per_wall_second(tmp_path: Path) -> None:
     out = tmp_path / "run"
     args = ("run", FIRE / "thesis_5_8_2.toml", "--virtual", "--no-plots", "--out", out)

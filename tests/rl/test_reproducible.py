@@ -80,6 +80,7 @@ def test_an_episode_does_not_depend_on_the_episodes_before_it(make: Callable[...
         pytest.param(3, 3.7, marks=pytest.mark.slow),
     ],
 )
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_holding_the_first_ranked_partner_is_the_time_strategy_to_the_last_bit(
     seed: int, dt: float, make: Callable[..., Any]
 ) -> None:
@@ -100,6 +101,7 @@ def test_holding_the_first_ranked_partner_is_the_time_strategy_to_the_last_bit(
     assert env.time == builtin.makespan
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_another_choice_changes_the_run(make: Callable[..., Any]) -> None:
     """The comparison above can fail: asking the second ranked robot first is another run."""
     builtin = run_scenario_file(FIRE_BRIGADE, "run.seed=1", "strategy.name=time").result

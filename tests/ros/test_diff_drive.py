@@ -75,6 +75,7 @@ def drive_of(link: RosLink, **kwargs: Any) -> RosDiffDrive:
     return RosDiffDrive(link, 7, ScaledClock(FACTOR), **kwargs)
 
 
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 async def test_it_drives_to_a_goal_in_the_layers_frame_and_turns(
     fake_robot: Callable[..., Awaitable[Started]],
     link_to: Callable[[FakeRobot], Awaitable[RosLink]],
