@@ -17,6 +17,7 @@ from collections.abc import Callable
 from typing import Final, final
 
 from .._swarm_key import SwarmKey
+from ._control import HURRY_LIMIT
 from ._processes import WorkerLost, within
 
 __all__ = ["Children"]
@@ -60,11 +61,22 @@ class Children:
         """The process ids of the children that have exited."""
         return {child.pid for child in self._processes if child.returncode is not None}
 
-    async def reap(self) -> None:
-        """Waits for every child to exit (``REAP_LIMIT`` each, together), kills the rest."""
-        await asyncio.gather(*(self._reap(child) for child in self._processes))
+    async def reap(self, *, hurry: bool = False) -> None:
+        """Waits for every child to exit (``REAP_LIMIT`` each, together), kills the rest.
+
+        ``hurry``: the run was stopped (a signal): :data:`~._control.HURRY_LIMIT` instead.
+        """
+        limit = HURRY_LIMIT if hurry else REAP_LIMIT
+        await asyncio.gather(*(self._reap(child, limit) for child in self._processes))
         for watcher in self._watchers:
             watcher.cancel()
+
+    def kill(self) -> None:
+        """Kills every child still running, at once (their exits are reaped later, if ever)."""
+        for child in self._processes:
+            if child.returncode is None:
+                with contextlib.suppress(ProcessLookupError):
+                    child.kill()
 
     async def _watch(self, child: asyncio.subprocess.Process) -> None:
         """Passes the child's stderr on, keeps its last lines, reports its exit.
@@ -85,9 +97,9 @@ class Children:
         self._exited(child.pid, code, said)
 
     @staticmethod
-    async def _reap(child: asyncio.subprocess.Process) -> None:
+    async def _reap(child: asyncio.subprocess.Process, limit: float) -> None:
         with contextlib.suppress(WorkerLost):
-            await within(child.wait(), REAP_LIMIT, "a worker to exit")
+            await within(child.wait(), limit, "a worker to exit")
         if child.returncode is None:
             with contextlib.suppress(ProcessLookupError):
                 child.kill()

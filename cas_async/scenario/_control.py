@@ -60,6 +60,7 @@ from ._observer import Observation
 
 __all__ = [
     "BEAT_EVERY",
+    "HURRY_LIMIT",
     "SUSPECT_LIMIT",
     "WORLD",
     "Beat",
@@ -84,6 +85,10 @@ __all__ = [
 
 WORLD: Final = -1
 """The world's sender id (workers are ``0..n-1``)."""
+HURRY_LIMIT: Final = 0.5
+"""Wall seconds the world waits for its workers' last counts, and for its child workers
+to exit, when the run was stopped (a signal ends a run within about a second): the
+counts it has are at most a second old (workers report every second)."""
 BEAT_EVERY: Final = 0.5
 """Wall seconds between two :class:`Beat` of the world."""
 SUSPECT_LIMIT: Final = 2.0

@@ -308,7 +308,7 @@ class ScenarioRun:
                 status, failure = await world.coordinate(
                     observer, self._complete.is_set, self._stop
                 )
-                await world.finish()  # the workers stop, and send their counts
+                await world.finish(hurry=self._stop.is_set())  # the workers stop, and send counts
                 return self._end(status, failure)
             status, failure = await sampled_until_end(
                 self._swarm.run() if world is None or observer is None else world.follow(observer),
@@ -327,7 +327,7 @@ class ScenarioRun:
             self._close_progress(final=False)
             raise
         if self._world is not None:
-            await self._world.finish()  # the workers stop, and send their counts
+            await self._world.finish(hurry=self._stop.is_set())  # the workers' last counts
         return self._end(status, failure)
 
     def failed_to_start(self, error: BaseException) -> RunResult:
@@ -343,13 +343,13 @@ class ScenarioRun:
     def interrupt(self) -> RunResult:
         """Ends the run where it stands, as a set ``stop`` does, but at once; returns the result.
 
-        For a loop callback that must not wait for the loop to get round to the
-        stop (with ten thousand robots starting, that takes several passes of a
-        fraction of a second each): what the run measured is final when this
-        returns, and :meth:`until_done` returns it. The robots still run until
-        the ``async with`` block is left.
+        For a loop callback that must not wait for the stop to be seen: the result is
+        final now (:meth:`until_done` returns it); robots here run until the ``async
+        with`` block is left; a world's workers are told to stop, its children killed.
         """
         self._stop.set()
+        if self._world is not None:
+            self._world.abandon()
         return self._end(RunStatus.INTERRUPTED, None)
 
     def _end(self, status: RunStatus, failure: BaseException | None) -> RunResult:
@@ -413,7 +413,7 @@ class ScenarioRun:
             if self._windowed is not None:
                 self._windowed.stop()  # a start that failed left its windows on the loop
             if self._world is not None:
-                await self._world.close()
+                await self._world.close(hurry=self._stop.is_set())
             self._gc.close()
             if self._trace_csv is not None and not self._ended:
                 self._trace_csv.discard()  # the run ended by an exception: no trace

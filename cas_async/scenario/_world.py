@@ -39,6 +39,7 @@ from ._capacity import Capacity, processes_problem
 from ._children import Children
 from ._control import (
     BEAT_EVERY,
+    HURRY_LIMIT,
     WORLD,
     Beat,
     Bye,
@@ -65,8 +66,7 @@ from ._tally import summed_faults, summed_messages
 __all__ = ["World"]
 
 GO_AHEAD: Final = 0.5
-"""Wall seconds between the world's :class:`Go` and the epoch it names (scaled time): time
-for it to reach every worker."""
+"""Wall seconds from the world's :class:`Go` to the epoch it names (scaled time)."""
 STOP_LIMIT: Final = 10.0
 """Wall seconds the world waits for its workers' last counts, all together."""
 
@@ -322,9 +322,8 @@ class World:
     def tick(self) -> None:
         """Look at the wall clock again: called every ~50 ms while the world waits.
 
-        On virtual time by the held loop (see :class:`~._windows.Held`), on scaled
-        time by the world's own ticking: a worker that never answers ends the run
-        all the same.
+        By the held loop (virtual time, :class:`~._windows.Held`) or the world's own
+        ticking (scaled): a worker that never answers ends the run all the same.
         """
         if self._news is not None:
             self._news.set()
@@ -340,8 +339,8 @@ class World:
             await asyncio.sleep(0.05)
             self.tick()
 
-    async def finish(self) -> None:
-        """The run ended: every worker stops its robots; their last counts, all at once."""
+    async def finish(self, *, hurry: bool = False) -> None:
+        """The run ended: workers stop their robots; their last counts (``hurry``: briefly)."""
         channel = self._channel
         if channel is None:
             return
@@ -352,19 +351,16 @@ class World:
             with contextlib.suppress(WorkerLost):
                 await self._until(
                     lambda: not (set(range(self._workers)) - self._byes - self._gone()),
-                    STOP_LIMIT,
+                    HURRY_LIMIT if hurry else STOP_LIMIT,
                     "the workers' last counts",
                 )
 
     def stats(self) -> dict[str, float | int | str]:
         """What the distribution cost: workers, windows, the longest wait of a worker.
 
-        ``cross_process_effects``: the effects (datagrams, hand-over steps) from a
-        worker's robots to another's. ``worker_waited_s``: the most wall seconds a
-        worker spent waiting for the others' windows and for grants. On scaled
-        time instead, how many effects came from another worker after their
-        instant (``late_effects``) and the most wall seconds one came late
-        (``most_late_s``): how far the workers fell behind each other.
+        ``cross_process_effects`` (datagrams, hand-over steps between workers);
+        ``worker_waited_s`` (for the others' windows and grants); on scaled time,
+        ``late_effects`` and ``most_late_s`` (how far the workers fell behind).
         """
         waited = max(self._waited.values(), default=0.0)
         if not self._scenario.run.virtual:  # scaled time: what came late, and how late
@@ -401,7 +397,14 @@ class World:
             self._liveness.tokens,
         )
 
-    async def close(self) -> None:
+    def abandon(self) -> None:
+        """The run ends at once (a signal): the workers are told to stop, children killed."""
+        if self._channel is not None:
+            with contextlib.suppress(Exception):
+                self._channel.send("all", Stop())
+        self._children.kill()
+
+    async def close(self, *, hurry: bool = False) -> None:
         """Closes the channels and the router; every child process is gone afterwards."""
         for closing in (self._channel, self._lobby):
             if closing is not None:
@@ -410,7 +413,7 @@ class World:
         if self._token_of_world is not None:
             with contextlib.suppress(Exception):
                 self._token_of_world.undeclare()
-        await self._children.reap()
+        await self._children.reap(hurry=hurry)
         for watcher in self._watchers:
             watcher.cancel()
         session, self._session = self._session, None
