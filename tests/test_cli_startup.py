@@ -50,6 +50,7 @@ def scenario(tmp_path: Path, app: str, run: str = "") -> Path:
 def test_an_objective_that_cannot_run_across_processes_says_what_distributable_means(
     tmp_path: Path,
 ) -> None:
+    pytest.importorskip("zenoh", reason="--processes needs the zenoh extra: it says so first")
     line = refused_in_one_line(
         run_cli("run", GATHERING, "--processes", "2", "--out", tmp_path / "out")
     )

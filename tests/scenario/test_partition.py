@@ -125,6 +125,7 @@ def test_an_applications_partition_that_is_no_partition_is_refused(
 def test_a_run_with_more_processes_than_robots_is_a_usage_error_naming_both(
     tmp_path: Path,
 ) -> None:
+    pytest.importorskip("zenoh", reason="--processes needs the zenoh extra: it says so first")
     scenario = SCENARIOS / "thesis_5_8_1.toml"  # 20 robots
     command = [sys.executable, "-m", "cas_async", "run", str(scenario), "--virtual"]
     done = subprocess.run(
