@@ -11,13 +11,31 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Callable, Coroutine
+from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
 from .._clock import Clock
 from ._results import RunStatus
 
-__all__ = ["sampled_until_end"]
+__all__ = ["first_ended", "sampled_until_end"]
+
+
+async def first_ended(tasks: Iterable[asyncio.Future[Any]]) -> set[asyncio.Future[Any]]:
+    """Waits until one of ``tasks`` ends, cancels the others; which had ended by then.
+
+    Every task has finished when this returns; a task's own failure is not raised
+    here: the caller reads it from the task.
+    """
+    tasks = list(tasks)
+    try:
+        done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for task in tasks:
+            task.cancel()
+        for task in tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+    return done
 
 
 async def sampled_until_end(
@@ -56,15 +74,7 @@ async def sampled_until_end(
     }
     if stop is not None:
         waits["stop"] = asyncio.ensure_future(stop.wait())
-    try:
-        done, _ = await asyncio.wait(waits.values(), return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        for task in waits.values():
-            task.cancel()
-        for task in waits.values():
-            # A task's own failure is read below, from the task: not raised here.
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await task
+    done = await first_ended(waits.values())
     if waits["complete"] in done:
         return RunStatus.COMPLETED, None
     if waits["swarm"] in done or waits["sampling"] in done:

@@ -11,7 +11,6 @@ across processes observes its workers' robots, so that both measure the same.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import math
 from collections.abc import Awaitable, Callable
 from typing import final
@@ -23,6 +22,7 @@ from ..sim._environment import Environment
 from ._loader import Scenario
 from ._observer import Observer, Recorder, mirror_of
 from ._results import RunStatus
+from ._sampled import first_ended
 from ._windows import Windows
 
 __all__ = ["WindowedRun"]
@@ -87,14 +87,7 @@ class WindowedRun:
             "swarm": asyncio.ensure_future(running),
             "stop": asyncio.ensure_future(stop.wait()),
         }
-        try:
-            done, _ = await asyncio.wait(waits.values(), return_when=asyncio.FIRST_COMPLETED)
-        finally:
-            for task in waits.values():
-                task.cancel()
-            for task in waits.values():
-                with contextlib.suppress(asyncio.CancelledError, Exception):
-                    await task
+        done = await first_ended(waits.values())
         if complete.is_set():
             return RunStatus.COMPLETED, None
         if waits["swarm"] in done:
