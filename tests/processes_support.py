@@ -72,14 +72,13 @@ class Process:
         return self.popen.poll() is None
 
     def group_alive(self) -> bool:
-        """Whether any process of its session (itself, or a worker it spawned) still runs."""
-        try:
-            os.killpg(self.popen.pid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:  # pragma: no cover - a reused id of another user's group
-            return False
-        return True
+        """Whether any process of its session (itself, or a worker it spawned) still runs.
+
+        A process that has exited but is not yet reaped (a zombie) does not run: once
+        the run has exited, its killed workers are reaped by the system's init, which
+        in a container may take a second or two.
+        """
+        return any(state != "Z" for state in group_states(self.popen.pid).values())
 
     def children(self) -> list[int]:
         """The ids of the processes it started (the workers of ``run --processes``)."""
@@ -233,18 +232,26 @@ def wait_for_line(process: Process, pattern: str, limit: float = START_LIMIT) ->
 
 
 def children_of(pid: int) -> list[int]:
-    """The ids of the live processes whose parent is ``pid`` (Linux: from ``/proc``)."""
-    found = []
+    """The ids of the processes whose parent is ``pid`` (Linux: from ``/proc``)."""
+    return sorted(found for found, fields in _stats() if int(fields[1]) == pid)
+
+
+def group_states(pgid: int) -> dict[int, str]:
+    """The state letter (``R``, ``S``, ``Z`` ...) of each process of group ``pgid``."""
+    return {found: fields[0] for found, fields in _stats() if int(fields[2]) == pgid}
+
+
+def _stats() -> Iterator[tuple[int, list[str]]]:
+    """Each process's id and the fields of its ``/proc/PID/stat`` from its state on."""
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
-        with contextlib.suppress(OSError):
+        try:
             stat = (entry / "stat").read_text()
-            # pid (comm) state ppid ...: comm may hold spaces and parentheses
-            fields = stat[stat.rindex(")") + 2 :].split()
-            if int(fields[1]) == pid:
-                found.append(int(entry.name))
-    return sorted(found)
+        except OSError:  # it exited meanwhile
+            continue
+        # pid (comm) state ppid pgrp ...: comm may hold spaces and parentheses
+        yield int(entry.name), stat[stat.rindex(")") + 2 :].split()
 
 
 def assert_all_delivered(result: dict[str, Any], target: int = 20) -> None:

@@ -55,7 +55,7 @@ def test_a_signal_stops_a_run_across_processes_with_its_counts(
         stopped_in = time.monotonic() - began
         assert code == EXIT_CODES[signum], (code, run.output())
         assert stopped_in < STOP_LIMIT
-        # The workers it started are killed with it: none outlives it by more than a
+        # The workers it started are told to stop and killed: none outlives it by more than a
         # moment (they would stop by themselves within about 2 s otherwise).
         deadline = time.monotonic() + GROUP_LIMIT
         while run.group_alive() and time.monotonic() < deadline:
