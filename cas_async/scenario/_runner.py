@@ -28,7 +28,6 @@ import numpy.typing as npt
 from .._errors import ConfigurationError, LayerError
 from .._swarm import Swarm
 from .._swarm_key import SwarmKey
-from .._virtual_loop import VirtualTimeLoop
 from ..sim._environment import Environment
 from ._app import Mission, objective_of
 from ._gc_policy import young_generation_for
@@ -36,15 +35,11 @@ from ._layers import check_built
 from ._listener import Listeners, RunListener
 from ._loader import Scenario
 from ._measure import PositionMeasures, mark_failed, measure_end
-from ._objective import CallbackWatch, Objective, not_distributable
-from ._observer import Observer, mirror_of
+from ._objective import CallbackWatch, Objective
+from ._placement import Sampling, place, transport_for
 from ._progress import Progress
 from ._results import RunProgress, RunResult, RunStatus
-from ._run_transport import fault_counts, run_transport
-from ._sampled import sampled_until_end
 from ._trace import Trace, TraceCsv
-from ._windowed import WindowedRun
-from ._windows import Held
 from ._world import World
 
 __all__ = ["ScenarioRun"]
@@ -99,7 +94,6 @@ class ScenarioRun:
         trace_csv: Path | None = None,
         world: World | None = None,
     ) -> None:
-        self._world = world
         self._wall_clock = wall_clock
         self._trace_path = trace_csv
         self._trace_csv: TraceCsv | None = None
@@ -110,13 +104,9 @@ class ScenarioRun:
         self._clock = clock = scenario.clock()
         environment = scenario.environment(clock)
         self._complete = asyncio.Event()
-        if world is None:
-            self._transport = run_transport(scenario, clock, key)
-        else:  # the robots run in the workers: these copies never start
-            self._transport = world.transport()
-        self._mission = mission = scenario.app.build(
-            scenario.setup(environment, clock, self._transport)
-        )
+        self._listeners = Listeners()
+        transport = transport_for(scenario, clock, key, world)
+        self._mission = mission = scenario.app.build(scenario.setup(environment, clock, transport))
         try:
             check_built(getattr(scenario.app, "stack", ()), scenario.layers, mission.robots)
         except ConfigurationError as error:
@@ -124,34 +114,21 @@ class ScenarioRun:
         self._objective = objective = objective_of(
             mission, scenario.app.name, getattr(scenario.app, "item_name", "item")
         )
-        if world is not None and not objective.distributable:
-            raise ConfigurationError(not_distributable(scenario.path, scenario.app.name, objective))
-        self._windowed: WindowedRun | None = None
-        # An objective that reads the Environment only (distributable) may read a mirror.
-        if (
-            run.virtual
-            and scenario.network.latency > 0
-            and world is None
-            and objective.distributable
-        ):
-            self._windowed = WindowedRun(
-                scenario, environment, clock, self._sample_held, self._complete.is_set
-            )
-            environment = self._windowed.mirror
-        self._observer: Observer | None = None
-        if world is not None:  # the workers' robots, observed in a mirror of them
-            world.adopt(environment, mission)
-            mirror = mirror_of(environment)
-            self._observer = Observer(
-                mirror, run.trace_interval, self._sample_held, self._complete.is_set
-            )
-            environment = mirror
-        self.environment = environment
+        sampling = Sampling(
+            clock, run.max_time, run.trace_interval, self._sample, self._listeners.hold,
+            self._sample_held, self._fell_behind, self._complete.is_set,
+        )  # fmt: skip
+        # Where the robots run: here (sampled, or in windows), or in a world's workers.
+        self._placement = placement = place(
+            scenario, environment, transport, mission, objective, sampling, world
+        )
+        self.environment = environment = placement.environment
         """What the run observes of its robots: their poses, motions and items.
 
         With a network latency on virtual time (and an objective that reads only
-        the Environment), a mirror of the robots' own, which follows them window
-        by window (see :mod:`cas_async.scenario._observer`); else theirs."""
+        the Environment), or across processes, a mirror of the robots' own, which
+        follows them window by window (see :mod:`cas_async.scenario._observer`);
+        else theirs."""
         self._progress = None
         if progress_to is not None:
             self._progress = Progress(
@@ -190,8 +167,6 @@ class ScenarioRun:
         )
         if observe is not None:
             observe(environment)
-        self._swarm = Swarm(mission.robots if world is None else ())
-        self._listeners = Listeners()
         self._started_swarm = False
         self._ended = False
         self._gc = contextlib.ExitStack()
@@ -252,22 +227,15 @@ class ScenarioRun:
     @property
     def swarm(self) -> Swarm:
         """The robots the application built, as one swarm (started by ``async with``)."""
-        return self._swarm
+        return self._placement.swarm
 
     async def __aenter__(self) -> ScenarioRun:
         """Starts the robots; when ``stop`` is set meanwhile, the start is undone instead."""
         # While the swarm runs, the collector's youngest generation is sized to it.
-        self._gc.enter_context(young_generation_for(len(self._swarm)))
+        self._gc.enter_context(young_generation_for(len(self._placement.swarm)))
         try:
-            if self._windowed is not None:
-                self._windowed.start()  # before any robot's first instant
-            if self._world is not None and self._scenario.run.virtual:
-                loop = asyncio.get_running_loop()
-                if isinstance(loop, VirtualTimeLoop):  # no robots here: time stands still
-                    loop.run_windows(Held(self._world.tick))
-            starting = asyncio.ensure_future(
-                self._swarm.__aenter__() if self._world is None else self._world.start(self._clock)
-            )
+            self._placement.arm()  # before any robot's first instant
+            starting = asyncio.ensure_future(self._placement.start())
             stopped = asyncio.ensure_future(self._stop.wait())
             try:
                 await asyncio.wait((starting, stopped), return_when=asyncio.FIRST_COMPLETED)
@@ -298,36 +266,12 @@ class ScenarioRun:
         if not self._started_swarm:  # stopped while starting
             return self._end(RunStatus.INTERRUPTED, None)
         try:
-            if self._windowed is not None:
-                status, failure = await self._windowed.until_done(
-                    self._swarm.run(), self._complete, self._stop
-                )
-                return self._end(status, failure)
-            world, observer = self._world, self._observer
-            if world is not None and observer is not None and self._scenario.run.virtual:
-                status, failure = await world.coordinate(
-                    observer, self._complete.is_set, self._stop
-                )
-                await world.finish(hurry=self._stop.is_set())  # the workers stop, and send counts
-                return self._end(status, failure)
-            status, failure = await sampled_until_end(
-                self._swarm.run() if world is None or observer is None else world.follow(observer),
-                self._clock,
-                self._scenario.run.max_time,
-                self._scenario.run.trace_interval,
-                self._complete,
-                self._stop,
-                self._sample,
-                self._listeners.hold,
-                self._fell_behind,
-            )
+            status, failure = await self._placement.until_done(self._complete, self._stop)
         except LayerError as error:  # the swarm's, raised again as its task is awaited
             status, failure = RunStatus.FAILED, error
         except BaseException:
             self._close_progress(final=False)
             raise
-        if self._world is not None:
-            await self._world.finish(hurry=self._stop.is_set())  # the workers' last counts
         return self._end(status, failure)
 
     def failed_to_start(self, error: BaseException) -> RunResult:
@@ -348,8 +292,7 @@ class ScenarioRun:
         with`` block is left; a world's workers are told to stop, its children killed.
         """
         self._stop.set()
-        if self._world is not None:
-            self._world.abandon()
+        self._placement.abandon()
         return self._end(RunStatus.INTERRUPTED, None)
 
     def _end(self, status: RunStatus, failure: BaseException | None) -> RunResult:
@@ -358,10 +301,7 @@ class ScenarioRun:
         if self._ended:
             return result
         self._ended = True
-        if self._windowed is not None:
-            if status in (RunStatus.INTERRUPTED, RunStatus.FAILED):
-                self._windowed.observe_now()
-            self._windowed.stop()
+        self._placement.ended(status)
         result.status = status
         if failure is not None:
             mark_failed(result, failure)
@@ -369,17 +309,14 @@ class ScenarioRun:
             result,
             self._mission,
             self._objective,
-            self._message_counts(),
+            self._placement.message_counts(),
             self.environment,
             self._end_instant(status),
         )
         if status is RunStatus.COMPLETED and result.makespan is not None:
             self._sample_last(result.makespan)  # the trace ends where the mission did
         self._measures.write(result, self.trace)
-        if self._world is not None:
-            result.extra.update(self._world.stats())
-        elif self._windowed is not None:
-            result.extra["windows"] = self._windowed.rounds
+        result.extra.update(self._placement.stats())
         if not self._scenario.run.virtual:  # how far the run fell behind the wall clock
             result.extra["behind_s"] = round(self._behind, 3)
         self._count_faults()
@@ -405,15 +342,12 @@ class ScenarioRun:
     ) -> None:
         """Stops and closes the robots; a layer failure found on the way fails the result."""
         try:
-            if self._started_swarm and self._world is None:
-                await self._swarm.__aexit__(exc_type, exc, tb)
+            if self._started_swarm:
+                await self._placement.stop(exc_type, exc, tb)
         except LayerError as error:  # a failure that running did not raise
             mark_failed(self.result, error)
         finally:
-            if self._windowed is not None:
-                self._windowed.stop()  # a start that failed left its windows on the loop
-            if self._world is not None:
-                await self._world.close(hurry=self._stop.is_set())
+            await self._placement.close(hurry=self._stop.is_set())
             self._gc.close()
             if self._trace_csv is not None and not self._ended:
                 self._trace_csv.discard()  # the run ended by an exception: no trace
@@ -449,14 +383,7 @@ class ScenarioRun:
         ``max_time``, or at the last window's end, the same for any number of
         processes. Otherwise, now.
         """
-        observer = self._observer
-        observed = (
-            self._windowed.observed_until
-            if self._windowed is not None
-            else observer.until
-            if observer is not None and self._scenario.run.virtual
-            else None
-        )
+        observed = self._placement.observed_until()
         if observed is None:
             return self._clock.now()
         if status is RunStatus.COMPLETED and self.result.makespan is not None:
@@ -482,17 +409,8 @@ class ScenarioRun:
         """Which robots of the trace carry something now, in the trace's row order."""
         return np.isin(self._rows, np.fromiter(self._objective.carrying(), dtype=np.int64))
 
-    def _message_counts(self) -> tuple[dict[str, dict[str, int]], dict[str, int]]:
-        """Messages by kind and class, and drop reasons: this process's, or the workers'."""
-        if self._world is not None:
-            return self._world.message_counts()
-        return self._swarm.message_counts(), self._swarm.drop_counts()
-
     def _count_faults(self) -> None:
-        if self._world is not None:  # the robots' wires are the workers'
-            self.result.faults = self._world.fault_counts()
-            return
-        self.result.faults = fault_counts(self._transport)
+        self.result.faults = self._placement.fault_counts()
 
     def _close_progress(self, *, final: bool) -> None:
         if self._progress is not None:
