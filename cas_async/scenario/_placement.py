@@ -50,7 +50,7 @@ Counts = tuple[dict[str, dict[str, int]], dict[str, int]]
 """Messages by kind and class, and drops by reason."""
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Sampling:
     """What the run does at each sample instant, for the placement to call."""
 

@@ -115,9 +115,15 @@ class ScenarioRun:
             mission, scenario.app.name, getattr(scenario.app, "item_name", "item")
         )
         sampling = Sampling(
-            clock, run.max_time, run.trace_interval, self._sample, self._listeners.hold,
-            self._sample_held, self._fell_behind, self._complete.is_set,
-        )  # fmt: skip
+            clock=clock,
+            max_time=run.max_time,
+            interval=run.trace_interval,
+            sample=self._sample,
+            hold=self._listeners.hold,
+            sample_held=self._sample_held,
+            behind=self._fell_behind,
+            done=self._complete.is_set,
+        )
         # Where the robots run: here (sampled, or in windows), or in a world's workers.
         self._placement = placement = place(
             scenario, environment, transport, mission, objective, sampling, world

@@ -41,16 +41,22 @@ async def _held(t: float) -> None:
 
 
 def placed(scenario: Scenario, world: World | None = None) -> tuple[Placement, Environment]:
-    """The placement of ``scenario``'s mission, built as a run builds it; the robots' Environment."""
+    """The placement of ``scenario``'s mission, built as a run builds it; the Environment."""
     clock = scenario.clock()
     environment = scenario.environment(clock)
     transport = transport_for(scenario, clock, None, world)
     mission = scenario.app.build(scenario.setup(environment, clock, transport))
     objective = objective_of(mission, scenario.app.name, "item")
     sampling = Sampling(
-        clock, scenario.run.max_time, scenario.run.trace_interval, lambda t: None, _held,
-        _held, lambda seconds: None, lambda: False,
-    )  # fmt: skip
+        clock=clock,
+        max_time=scenario.run.max_time,
+        interval=scenario.run.trace_interval,
+        sample=lambda t: None,
+        hold=_held,
+        sample_held=_held,
+        behind=lambda seconds: None,
+        done=lambda: False,
+    )
     return place(scenario, environment, transport, mission, objective, sampling, world), environment
 
 
