@@ -95,6 +95,21 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         self._windows: Windows | None = None
         super().__init__(_JumpingSelector(selectors.DefaultSelector(), self))
 
+    # asyncio runs, in each pass, every timer due before ``time() + _clock_resolution``
+    # (the monotonic clock's resolution, a nanosecond, for real time). Virtual time
+    # is exact: a timer runs once time has reached its instant, not a fraction of a
+    # nanosecond before, at whatever event came just before it (the events before it
+    # depend on which robots share the loop: identical runs across processes rely on
+    # this). The resolution is the spacing of floats at now, so that
+    # ``now + resolution`` is the next float and "due before it" means "due by now".
+    @property
+    def _clock_resolution(self) -> float:
+        return math.ulp(self._virtual_now)
+
+    @_clock_resolution.setter
+    def _clock_resolution(self, value: float) -> None:
+        """Ignored: the base loop sets the monotonic clock's (see the getter)."""
+
     def host(self, deliveries: Deliveries) -> None:
         """Runs ``deliveries``' actions at their instants, before the timers of that instant."""
         self._deliveries = deliveries

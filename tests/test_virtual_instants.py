@@ -42,6 +42,17 @@ def test_a_timer_reads_its_own_instant_whatever_came_before() -> None:
     assert reached(instants, [rng.uniform(0, 12) for _ in range(200)]) == instants
 
 
+def test_a_timer_within_a_nanosecond_of_another_event_waits_for_its_own_instant() -> None:
+    # asyncio runs every timer due within its clock's resolution (1 ns) of now: on
+    # virtual time that ran a robot's timer at another robot's event a fraction of a
+    # nanosecond earlier, when the two shared a loop, and at its own instant when
+    # they were in two processes (scale_2500: one robot's hand-over, 6e-10 s apart).
+    instants = [12.71517256148098, 1.0 + 5e-10, 3.0 + 1e-12, 200_000.3 + 5e-11]
+    before = [12.715172560891675, 1.0, 3.0, 200_000.3]
+    assert reached(instants, before) == instants
+    assert reached(instants, []) == instants
+
+
 def test_a_timer_more_than_a_day_away_is_reached_exactly() -> None:
     # asyncio waits at most a day at a time: the loop must not stop short of it.
     assert reached([200_000.3], [0.7]) == [200_000.3]
