@@ -4,8 +4,8 @@ asyncio asks its selector to wait ``timeout`` seconds when no callback is ready:
 exactly the moment every task is idle until the next timer. This loop's selector
 polls real I/O without waiting and, when nothing is ready, advances the virtual
 clock by ``timeout`` instead of sleeping. Timers then fire in deadline order at
-their exact virtual instants, so runs are as fast as the CPU allows and, with the
-same inputs, identical.
+their exact virtual instants (those of one instant in the order they were armed),
+so runs are as fast as the CPU allows and, with the same inputs, identical.
 
 Real sockets do not run on virtual time (their data would arrive "late" in virtual
 terms, or the loop would jump past it), so robots refuse UDP with a virtual clock.
@@ -19,9 +19,12 @@ always uses this stdlib-based loop.
 from __future__ import annotations
 
 import asyncio
+import contextvars
+import heapq
 import math
 import selectors
-from typing import TYPE_CHECKING, Any, Final, Protocol
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Final, Protocol, TypeVarTuple, Unpack
 
 if TYPE_CHECKING:
     from ._deliveries import Deliveries
@@ -84,6 +87,39 @@ class _JumpingSelector(selectors.BaseSelector):
         return self._inner.get_map()
 
 
+_Ts = TypeVarTuple("_Ts")
+
+
+class _Timer(asyncio.TimerHandle):
+    """A timer that runs after every timer armed before it for the same instant.
+
+    asyncio orders its timers by instant alone, in a heap: those of one instant
+    then run in an order that depends on every other timer in the heap. A robot's
+    timers of one instant would run in another order when its process runs other
+    robots (a run across processes), and what follows from them too.
+    """
+
+    __slots__ = ("_order",)
+
+    def __init__(
+        self,
+        when: float,
+        callback: Callable[..., object],
+        args: Sequence[Any],
+        loop: asyncio.AbstractEventLoop,
+        context: contextvars.Context | None,
+        order: int,
+    ) -> None:
+        super().__init__(when, callback, args, loop, context)
+        self._order = order
+
+    def __lt__(self, other: asyncio.TimerHandle) -> bool:
+        when, other_when = self._when, other.when()  # type: ignore[attr-defined]
+        if when != other_when:
+            return bool(when < other_when)
+        return bool(self._order < getattr(other, "_order", self._order))
+
+
 class VirtualTimeLoop(asyncio.SelectorEventLoop):
     """A selector event loop on virtual time, starting at 0.0."""
 
@@ -93,7 +129,25 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         self._busy_passes = 0
         self._deliveries: Deliveries | None = None
         self._windows: Windows | None = None
+        self._timers_armed = 0
         super().__init__(_JumpingSelector(selectors.DefaultSelector(), self))
+
+    def call_at(
+        self,
+        when: float,
+        callback: Callable[[Unpack[_Ts]], object],
+        *args: *_Ts,
+        context: contextvars.Context | None = None,
+    ) -> asyncio.TimerHandle:
+        """As asyncio's, but timers of one instant run in the order they were armed."""
+        if when is None:
+            raise TypeError("when cannot be None")
+        self._check_closed()  # type: ignore[attr-defined]
+        self._timers_armed += 1
+        timer = _Timer(when, callback, args, self, context, self._timers_armed)
+        heapq.heappush(self._scheduled, timer)  # type: ignore[attr-defined]
+        timer._scheduled = True  # type: ignore[attr-defined]
+        return timer
 
     # asyncio runs, in each pass, every timer due before ``time() + _clock_resolution``
     # (the monotonic clock's resolution, a nanosecond, for real time). Virtual time

@@ -53,6 +53,31 @@ def test_a_timer_within_a_nanosecond_of_another_event_waits_for_its_own_instant(
     assert reached(instants, []) == instants
 
 
+def test_timers_of_one_instant_run_in_the_order_they_were_armed() -> None:
+    # asyncio's heap orders by instant alone: how it breaks ties depends on the other
+    # timers in it, so one robot's timers of an instant ran in another order when its
+    # process ran other robots too (a lossy run differed across processes).
+    def order(others: list[float]) -> list[int]:
+        async def main() -> list[int]:
+            loop = asyncio.get_running_loop()
+            ran: list[int] = []
+            for when in others:
+                loop.call_at(when, lambda: None)
+            for n in range(40):
+                loop.call_at(2.5, ran.append, n)
+                if n % 7 == 0:  # and a cancelled one among them
+                    loop.call_at(2.5, ran.append, -1).cancel()
+            await asyncio.sleep(3.0)
+            return ran
+
+        result: list[int] = cas_async.run(main(), virtual=True)
+        return result
+
+    rng = random.Random(46)
+    for others in ([], [2.5] * 9, [rng.choice([1.0, 2.5, 4.0]) for _ in range(300)]):
+        assert order(others) == list(range(40))
+
+
 def test_a_timer_more_than_a_day_away_is_reached_exactly() -> None:
     # asyncio waits at most a day at a time: the loop must not stop short of it.
     assert reached([200_000.3], [0.7]) == [200_000.3]
