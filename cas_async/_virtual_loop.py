@@ -99,7 +99,7 @@ class _Timer(asyncio.TimerHandle):
     robots (a run across processes), and what follows from them too.
     """
 
-    __slots__ = ("_order",)
+    __slots__ = ("_at", "_order")
 
     def __init__(
         self,
@@ -111,13 +111,14 @@ class _Timer(asyncio.TimerHandle):
         order: int,
     ) -> None:
         super().__init__(when, callback, args, loop, context)
+        self._at = when
         self._order = order
 
-    def __lt__(self, other: asyncio.TimerHandle) -> bool:
-        when, other_when = self._when, other.when()  # type: ignore[attr-defined]
-        if when != other_when:
-            return bool(when < other_when)
-        return bool(self._order < getattr(other, "_order", self._order))
+    def __lt__(self, other: _Timer) -> bool:  # type: ignore[override]
+        # The heap's one comparison, so written for speed: every timer of this loop
+        # is a _Timer (call_at makes them all).
+        at, other_at = self._at, other._at
+        return at < other_at or (at == other_at and self._order < other._order)
 
 
 class VirtualTimeLoop(asyncio.SelectorEventLoop):
