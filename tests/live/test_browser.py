@@ -37,8 +37,8 @@ PICK = """(() => {
   const free = s.drawn.robots.filter((r) => {
     const x = s.canvas.left + r.px / s.dpr, y = s.canvas.top + r.py / s.dpr;
     if (document.elementFromPoint(x, y) !== canvas) return false;  // under the HUD
-    return s.drawn.robots.every((o) => o === r ||
-      Math.hypot(o.px - r.px, o.py - r.py) > 4 * s.drawn.radius);
+    return s.drawn.robots.every((o) => o === r ||  // no other disc within 2 radii of its centre
+      Math.hypot(o.px - r.px, o.py - r.py) > 3 * s.drawn.radius);
   });
   return {state: s, free};
 })()"""
