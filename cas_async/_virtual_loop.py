@@ -144,6 +144,9 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         if when is None:
             raise TypeError("when cannot be None")
         self._check_closed()  # type: ignore[attr-defined]
+        if self._debug:  # type: ignore[attr-defined]
+            self._check_thread()  # type: ignore[attr-defined]
+            self._check_callback(callback, "call_at")  # type: ignore[attr-defined]
         self._timers_armed += 1
         timer = _Timer(when, callback, args, self, context, self._timers_armed)
         heapq.heappush(self._scheduled, timer)  # type: ignore[attr-defined]
