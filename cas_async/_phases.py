@@ -59,23 +59,28 @@ def check_phases(phases: Sequence[Phase]) -> tuple[Phase, ...]:
     phases = tuple(phases)
     if not phases:
         raise SimulationError("a speed profile needs at least one phase")
+    last = len(phases) - 1
     for index, phase in enumerate(phases):
-        where = f"phase {index} ({phase})"
-        if not (math.isfinite(phase.speed) and phase.speed >= 0):
-            raise SimulationError(f"{where}: speed must be finite and >= 0")
-        if not math.isfinite(phase.acceleration):
-            raise SimulationError(f"{where}: acceleration must be finite")
-        if index == len(phases) - 1:
-            if not (phase.duration == math.inf and phase.acceleration == 0 and phase.speed > 0):
-                raise SimulationError(
-                    f"{where}: the last phase must be a cruise "
-                    "(duration inf, acceleration 0, speed > 0)"
-                )
-        elif not (math.isfinite(phase.duration) and phase.duration > 0):
-            raise SimulationError(f"{where}: a ramp needs a finite duration > 0")
-        elif phase.speed + phase.acceleration * phase.duration < -_SPEED_SLACK:
-            raise SimulationError(f"{where}: the ramp ends below zero speed")
+        problem = _broken(phase, last=index == last)
+        if problem is not None:
+            raise SimulationError(f"phase {index} ({phase}): {problem}")
     return phases
+
+
+def _broken(phase: Phase, *, last: bool) -> str | None:
+    """What breaks the phase contract in ``phase`` (``None``: nothing)."""
+    if not (math.isfinite(phase.speed) and phase.speed >= 0):
+        return "speed must be finite and >= 0"
+    if not math.isfinite(phase.acceleration):
+        return "acceleration must be finite"
+    if last:
+        if not (phase.duration == math.inf and phase.acceleration == 0 and phase.speed > 0):
+            return "the last phase must be a cruise (duration inf, acceleration 0, speed > 0)"
+    elif not (math.isfinite(phase.duration) and phase.duration > 0):
+        return "a ramp needs a finite duration > 0"
+    elif phase.speed + phase.acceleration * phase.duration < -_SPEED_SLACK:
+        return "the ramp ends below zero speed"
+    return None
 
 
 def phase_starts(phases: Sequence[Phase]) -> list[tuple[float, float, Phase]]:
