@@ -92,10 +92,16 @@ class Recorder:
     Args:
         environment: the robots' Environment (its local robots' motions and items).
         robots: the robots whose motions are recorded (the others' are only seen).
+        keep: also keep each motion itself in :attr:`kept`, for an Observer in this
+            process (which then need not rebuild it from its numbers).
     """
 
-    def __init__(self, environment: Environment, robots: Iterable[RobotId]) -> None:
+    def __init__(
+        self, environment: Environment, robots: Iterable[RobotId], *, keep: bool = False
+    ) -> None:
         self._robots = set(robots)
+        self.kept: dict[tuple[RobotId, int], Motion] | None = {} if keep else None
+        """With ``keep``: the motions recorded and not applied yet, by robot and count."""
         # Per robot: its motions (as the Environment counts them, for when they are seen)
         # and its item events.
         self._motions: dict[RobotId, int] = {}
@@ -119,6 +125,8 @@ class Recorder:
         if robot in self._robots:
             n = self._count(self._motions, robot)
             self._window.motions.append(MotionRecord(start, robot, n, motion.to_numbers()))
+            if self.kept is not None:
+                self.kept[robot, n] = motion
 
     def _item(self, event: ItemEvent) -> None:
         actor = event.actor
@@ -146,6 +154,9 @@ class Observer:
         sample: awaited at each sample instant, once the mirror is there.
         done: whether the run is over (its mission complete): nothing after the
             event that ended it is applied.
+        kept: the motions a :class:`Recorder` of this process kept (``keep=True``):
+            each is applied as it is, and taken out, instead of being rebuilt from
+            its numbers (the same motion, to the bit; rebuilding costs about 13 µs).
     """
 
     def __init__(
@@ -154,8 +165,10 @@ class Observer:
         interval: float,
         sample: Callable[[float], Awaitable[None]],
         done: Callable[[], bool],
+        kept: dict[tuple[RobotId, int], Motion] | None = None,
     ) -> None:
         self.mirror = mirror
+        self._kept = kept
         self._interval = interval
         self._sample = sample
         self._done = done
@@ -198,7 +211,9 @@ class Observer:
     ) -> None:
         if kind == _MOTION:
             assert isinstance(record, MotionRecord)
-            self.mirror.start_motion(robot, Motion.from_numbers(record.numbers), t)
+            kept = None if self._kept is None else self._kept.pop((robot, record.n), None)
+            motion = Motion.from_numbers(record.numbers) if kept is None else kept
+            self.mirror.start_motion(robot, motion, t)
         else:
             assert isinstance(record, ItemRecord)
             self.mirror.items.apply(record.event())

@@ -52,8 +52,10 @@ class WindowedRun:
         self._max_time = scenario.run.max_time
         self.mirror = mirror_of(environment)
         """What the run observes: every robot, every motion and item event, in order."""
-        self._recorder = Recorder(environment, environment.robot_ids)
-        self._observer = Observer(self.mirror, scenario.run.trace_interval, sample, done)
+        self._recorder = Recorder(environment, environment.robot_ids, keep=True)
+        self._observer = Observer(
+            self.mirror, scenario.run.trace_interval, sample, done, self._recorder.kept
+        )
         self._done = done
         self.timed_out = False
         """Whether the run reached ``max_time`` (or nothing could happen any more)."""

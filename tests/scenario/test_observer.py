@@ -262,3 +262,33 @@ async def test_a_recorded_world_and_its_mirror_agree_at_every_sample() -> None:
         await watcher.window(t + 0.25, [recorder.take()])
     assert len(truth) == 9
     assert seen == truth
+
+
+def test_a_recorder_keeping_its_motions_hands_the_observer_the_motions_themselves() -> None:
+    env = standing_world()
+    recorder = Recorder(env, env.robot_ids, keep=True)
+    mirror = mirror_of(env)
+    watcher = Observer(mirror, 1.0, Samples(mirror), lambda: False, recorder.kept)
+    first, second = straight(Pose(1, 0, 0), 4, 0), straight(Pose(2, 0, 0), 0, 0)
+    env.start_motion(1, first, 0.0)
+    env.start_motion(2, second, 0.5)
+    window = recorder.take()
+    assert recorder.kept == {(1, 1): first, (2, 1): second}
+    watcher.apply([window], until=1.0)
+    # Applied as they are, not rebuilt from their numbers (the same, to the bit):
+    assert mirror.motion_of(1)[0] is first
+    assert mirror.motion_of(2)[0] is second
+    assert recorder.kept == {}  # taken out once applied
+
+
+def test_an_observer_of_other_processes_rebuilds_each_motion_from_its_numbers() -> None:
+    env = standing_world()
+    recorder = Recorder(env, env.robot_ids)  # a worker's: its motions travel as numbers
+    mirror = mirror_of(env)
+    motion = straight(Pose(1, 0, 0), 4, 0)
+    env.start_motion(1, motion, 0.0)
+    Observer(mirror, 1.0, Samples(mirror), lambda: False).apply([recorder.take()], until=1.0)
+    assert recorder.kept is None
+    rebuilt = mirror.motion_of(1)[0]
+    assert rebuilt is not motion
+    assert rebuilt.to_numbers() == motion.to_numbers()  # its profile as phases
