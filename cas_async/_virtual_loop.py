@@ -3,13 +3,16 @@
 asyncio asks its selector to wait ``timeout`` seconds when no callback is ready:
 exactly the moment every task is idle until the next timer. This loop's selector
 polls real I/O without waiting and, when nothing is ready, advances the virtual
-clock by ``timeout`` instead of sleeping. It polls every :data:`POLL_EVERY` passes
-only (a system call each, a few percent of a large simulation's time), and always
-before it really waits: what other threads hand over with ``call_soon_threadsafe``
-is run on the next pass all the same, and a signal or a socket's data waits a few
-passes at most. Timers then fire in deadline order at
+clock by ``timeout`` instead of sleeping. Timers then fire in deadline order at
 their exact virtual instants (those of one instant in the order they were armed),
 so runs are as fast as the CPU allows and, with the same inputs, identical.
+
+The selector polls real I/O once every :data:`POLL_EVERY` passes only (a system
+call each time, a few percent of a large simulation), and always before it really
+waits. What other threads hand over with ``call_soon_threadsafe`` runs on the next
+pass all the same (asyncio queues it itself); a signal, or a socket's data, waits
+for the next poll: a few passes, in which virtual time may move on, as it may while
+the data is on its way.
 
 Real sockets do not run on virtual time (their data would arrive "late" in virtual
 terms, or the loop would jump past it), so robots refuse UDP with a virtual clock.
