@@ -96,11 +96,12 @@ def test_work_from_another_thread_runs_on_the_next_pass_of_a_busy_loop() -> None
             loop.call_soon_threadsafe(done.set)
             handed.set()
 
-        threading.Thread(target=hand_over).start()
-        while not handed.wait(0.001):  # the thread has handed its work over
-            await asyncio.sleep(0)
+        thread = threading.Thread(target=hand_over)
+        thread.start()
+        thread.join(timeout=10.0)  # the work is handed over: on the ready queue already
+        assert handed.is_set()
         passes = 0
-        while not done.is_set():
+        while not done.is_set() and passes < 100 * POLL_EVERY:
             await asyncio.sleep(0)
             passes += 1
         return passes
