@@ -6,6 +6,7 @@ import asyncio
 import ipaddress
 import socket
 from collections.abc import AsyncIterator, Callable, Iterator
+from typing import Any
 
 import pytest
 
@@ -18,7 +19,7 @@ from cas_async import (
     UdpDirectory,
     UdpTransport,
 )
-from cas_async.transport._udp_socket import MAX_BACKLOG, SocketWire
+from cas_async.transport._udp_socket import BATCH, GROW_AFTER, MAX_BACKLOG, SocketWire
 from tests.stacks import STACK_MESSAGES, Note, Recorder, recorders
 from tests.taps import Tap
 
@@ -361,6 +362,100 @@ async def test_the_backlog_drains_in_order_once_the_socket_is_writable(
     assert got == payloads
     socket_wire.close()
     assert sink.dropped == []
+
+
+# -- SocketWire: reads in batches, without a failed read per datagram of a ping-pong -------
+
+
+class CountingSocket(socket.socket):
+    """A UDP socket that counts its reads: those that found a datagram, those that did not.
+
+    ``passes`` is read at each read, so the reads can be told apart by loop pass.
+    """
+
+    def __init__(self, passes: Callable[[], int]) -> None:
+        super().__init__(socket.AF_INET, socket.SOCK_DGRAM)
+        self.passes = passes
+        self.found = 0
+        self.empty = 0
+        self.read_in: set[int] = set()  # the loop passes that read
+
+    def recvfrom(self, bufsize: int, flags: int = 0) -> tuple[bytes, Any]:
+        self.read_in.add(self.passes())
+        try:
+            got = super().recvfrom(bufsize, flags)
+        except BlockingIOError:
+            self.empty += 1
+            raise
+        self.found += 1
+        return got
+
+
+@pytest.fixture
+async def counted() -> AsyncIterator[tuple[CountingSocket, socket.socket]]:
+    """``(receiving, sending)``: a counting socket and a plain one, both on 127.0.0.1.
+
+    A task counts the loop's passes (one step each), for ``CountingSocket.passes``.
+    """
+    count = [0]
+
+    async def tick() -> None:
+        while True:
+            await asyncio.sleep(0)
+            count[0] += 1
+
+    ticking = asyncio.ensure_future(tick())
+    receiving = CountingSocket(lambda: count[0])
+    sending = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        receiving.bind(("127.0.0.1", 0))
+        yield receiving, sending
+    finally:
+        ticking.cancel()
+        receiving.close()
+        sending.close()
+
+
+async def test_a_ping_pong_pays_an_empty_read_once_in_several_datagrams(
+    counted: tuple[CountingSocket, socket.socket],
+) -> None:
+    # One datagram per readable event: the budget doubling after each full event
+    # paid a failed recvfrom (and an exception) on every second datagram.
+    receiving, sending = counted
+    sink = RecordingSink()
+    socket_wire = SocketWire(asyncio.get_running_loop(), receiving, sink)
+    rounds = 90
+    try:
+        async with asyncio.timeout(10):
+            for n in range(rounds):
+                sending.sendto(n.to_bytes(2, "big"), receiving.getsockname())
+                while len(sink.received) <= n:
+                    await asyncio.sleep(0.001)
+    finally:
+        socket_wire.close()
+    assert sink.received == [n.to_bytes(2, "big") for n in range(rounds)]
+    assert receiving.found == rounds
+    assert receiving.empty <= rounds // (GROW_AFTER + 1) + 1
+
+
+async def test_a_burst_is_read_in_batches(counted: tuple[CountingSocket, socket.socket]) -> None:
+    receiving, sending = counted
+    burst = 120  # small datagrams: well within the default receive buffer
+    for n in range(burst):
+        sending.sendto(n.to_bytes(2, "big"), receiving.getsockname())
+    sink = RecordingSink()
+    socket_wire = SocketWire(asyncio.get_running_loop(), receiving, sink)
+    try:
+        async with asyncio.timeout(10):
+            while len(sink.received) < burst:
+                await asyncio.sleep(0.001)
+    finally:
+        socket_wire.close()
+    assert sink.received == [n.to_bytes(2, "big") for n in range(burst)]
+    # GROW_AFTER passes of one datagram, the budget then doubling up to BATCH: a
+    # fixed budget of one would take a pass per datagram.
+    doublings = BATCH.bit_length()
+    assert len(receiving.read_in) <= GROW_AFTER + doublings + burst // BATCH + 2
 
 
 # -- memory: a datagram in flight to a robot that stops is counted ---------------------------
