@@ -61,6 +61,7 @@ from ._control import (
     next_instant,
     token_lives,
 )
+from ._gc_policy import young_generation_for
 from ._loader import Scenario, scenario_from_data
 from ._lobby import LOBBY
 from ._network import ProcessNetwork
@@ -163,10 +164,14 @@ def run_worker(
             file=sys.stderr,
         )
     worker = _Worker(scenario, welcome, connect, key, listen)
-    if scenario.run.virtual:
-        with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
-            return runner.run(worker.run())
-    return run(worker.run())
+    # As in a run in one process, the collector's youngest generation is sized to the
+    # robots built here while they run: every robot of the run (see _gc_policy).
+    # Without it a worker of scale_2500 holding all the robots took 47 CPU s, not 38.
+    with young_generation_for(sum(map(len, welcome.shares))):
+        if scenario.run.virtual:
+            with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
+                return runner.run(worker.run())
+        return run(worker.run())
 
 
 async def _refuse(connect: str, key: SwarmKey | None, welcome: Welcome, error: str) -> None:
