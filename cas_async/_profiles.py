@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ._errors import SimulationError
 from ._phases import Phase, check_phases, locate, phase_starts, solve
@@ -51,7 +51,7 @@ def closing_time(distance: float, profiles: Iterable[SpeedProfile]) -> float:
         SimulationError: ``distance`` is negative or not finite, or no profile.
     """
     _check_time("distance", distance)
-    tables = [phase_starts(profile.phases()) for profile in profiles]
+    tables = [profile.starts() for profile in profiles]
     if not tables:
         raise SimulationError("closing_time needs at least one speed profile")
     bounds = sorted({start for table in tables for start, _, _ in table})
@@ -69,6 +69,10 @@ def closing_time(distance: float, profiles: Iterable[SpeedProfile]) -> float:
     raise AssertionError("unreachable: the last interval is an unbounded cruise")
 
 
+Starts = tuple[tuple[float, float, Phase], ...]
+"""Each phase of a profile with the time and the distance at which it begins."""
+
+
 class SpeedProfile(ABC):
     """Translation speed as a function of time since a reference instant.
 
@@ -82,17 +86,26 @@ class SpeedProfile(ABC):
     def phases(self) -> tuple[Phase, ...]:
         """The phases from time 0 on; they must satisfy :func:`check_phases`."""
 
+    def starts(self) -> Starts:
+        """Each phase with the time and the distance at which it begins.
+
+        :func:`~cas_async._phases.phase_starts` of :meth:`phases`; the profiles of
+        this module work it out once, on first use, as every question about a
+        profile (its speed, distance, meeting time...) starts from it.
+        """
+        return tuple(phase_starts(self.phases()))
+
     def speed_at(self, t: float) -> float:
         """Speed ``t >= 0`` seconds after the reference instant."""
         _check_time("t", t)
-        table = phase_starts(self.phases())
+        table = self.starts()
         start, _, phase = table[locate(table, t)]
         return phase.speed_at(t - start)
 
     def distance(self, t: float) -> float:
         """Distance covered between the reference instant and ``t >= 0``."""
         _check_time("t", t)
-        table = phase_starts(self.phases())
+        table = self.starts()
         start, covered, phase = table[locate(table, t)]
         return covered + phase.distance(t - start)
 
@@ -105,13 +118,12 @@ class SpeedProfile(ABC):
         _check_time("dt", dt)
         if dt == 0:
             return self
-        phases = self.phases()
-        table = phase_starts(phases)
+        table = self.starts()
         index = locate(table, dt)
         start, _, phase = table[index]
         into = dt - start
         first = Phase(phase.duration - into, phase.speed_at(into), phase.acceleration)
-        rest = phases[index + 1 :]
+        rest = tuple(later for _, _, later in table[index + 1 :])
         # A ramp whose remaining time rounds to nothing is dropped, not kept at zero length.
         return PiecewiseSpeed((first, *rest) if first.duration > 0 else rest)
 
@@ -121,6 +133,11 @@ class PiecewiseSpeed(SpeedProfile):
     """Any profile given by its phases (see :func:`check_phases` for the contract)."""
 
     parts: tuple[Phase, ...]
+    _starts: Starts | None = field(default=None, init=False, repr=False, compare=False)
+
+    def starts(self) -> Starts:
+        """As :meth:`SpeedProfile.starts`, worked out once."""
+        return self._starts or _keep_starts(self)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "parts", check_phases(self.parts))
@@ -139,6 +156,11 @@ class ConstantSpeed(SpeedProfile):
     """
 
     speed: float
+    _starts: Starts | None = field(default=None, init=False, repr=False, compare=False)
+
+    def starts(self) -> Starts:
+        """As :meth:`SpeedProfile.starts`, worked out once."""
+        return self._starts or _keep_starts(self)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.speed) and self.speed > 0):
@@ -176,6 +198,11 @@ class Decelerating(SpeedProfile):
     initial_speed: float
     deceleration: float
     min_speed: float
+    _starts: Starts | None = field(default=None, init=False, repr=False, compare=False)
+
+    def starts(self) -> Starts:
+        """As :meth:`SpeedProfile.starts`, worked out once."""
+        return self._starts or _keep_starts(self)
 
     def __post_init__(self) -> None:
         for name in ("initial_speed", "deceleration", "min_speed"):
@@ -219,3 +246,10 @@ class Decelerating(SpeedProfile):
         if speed == self.initial_speed:
             return self
         return Decelerating(speed, self.deceleration, self.min_speed)
+
+
+def _keep_starts(profile: PiecewiseSpeed | ConstantSpeed | Decelerating) -> Starts:
+    """Works out ``profile``'s starts and keeps them on it (a frozen value: set once)."""
+    starts = tuple(phase_starts(profile.phases()))
+    object.__setattr__(profile, "_starts", starts)
+    return starts

@@ -15,7 +15,6 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from .._phases import phase_starts
 from ._kinematics import Motion
 
 __all__ = ["SegmentTable"]
@@ -74,7 +73,7 @@ class SegmentTable:
             end.y,
             motion.length,
         )
-        phases = [] if motion.profile is None else phase_starts(motion.profile.phases())
+        phases = () if motion.profile is None else motion.profile.starts()
         if len(phases) > self._phases.shape[1]:
             wider = self._empty_phases(self._phases.shape[0], len(phases))
             wider[:, : self._phases.shape[1]] = self._phases

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import copy
 import math
+import pickle
 
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from cas_async import ConstantSpeed, Decelerating, PiecewiseSpeed, SimulationError, SpeedProfile
+from cas_async._phases import phase_starts
 from cas_async.sim import Phase, check_phases, closing_time
 
 INF = math.inf
@@ -107,6 +110,34 @@ profiles = st.one_of(
         st.floats(0.1, 10),
     ),
 )
+
+
+class Halving(SpeedProfile):
+    """A user's own profile: it implements ``phases`` only."""
+
+    def phases(self) -> tuple[Phase, ...]:
+        return (Phase(1.0, 2.0, -1.0), Phase(INF, 1.0, 0.0))
+
+
+@given(profiles)
+def test_a_profile_works_out_its_phase_starts_once_and_stays_an_equal_value(
+    profile: SpeedProfile,
+) -> None:
+    twin = copy.deepcopy(profile)  # a value that has not been asked yet
+    starts = profile.starts()
+    assert starts == tuple(phase_starts(profile.phases()))
+    assert profile.starts() is starts  # kept: not worked out again
+    assert profile == twin
+    assert hash(profile) == hash(twin)
+    assert repr(profile) == repr(twin)
+    assert pickle.loads(pickle.dumps(profile)).starts() == starts
+
+
+def test_a_users_profile_gets_its_phase_starts_from_its_phases() -> None:
+    halving = Halving()
+    assert halving.starts() == ((0.0, 0.0, Phase(1.0, 2.0, -1.0)), (1.0, 1.5, Phase(INF, 1.0, 0.0)))
+    assert halving.distance(3.0) == 3.5
+    assert halving.advanced(0.5).phases() == (Phase(0.5, 1.5, -1.0), Phase(INF, 1.0, 0.0))
 
 
 @given(profiles, st.floats(0, 100))
