@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal, overload
 
 from cas_async import ConstantSpeed, Decelerating, Layer, Message
@@ -138,6 +138,13 @@ class Params:
     retries: int = 6
     patience: float = 30.0
     sink_search: SinkSearch = "everyone"
+    _empty: ConstantSpeed = field(init=False, repr=False, compare=False)
+    _carrying: Decelerating = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # Made once: a profile works out its phases once, and layers ask for these often.
+        object.__setattr__(self, "_empty", ConstantSpeed(self.speed))
+        object.__setattr__(self, "_carrying", self._carrying_from(self.speed))
 
     @property
     def give_up_after(self) -> float:
@@ -151,7 +158,7 @@ class Params:
 
     def empty(self) -> ConstantSpeed:
         """A transporter's motion without a bucket: full speed."""
-        return ConstantSpeed(self.speed)
+        return self._empty
 
     def carrying(self, speed_now: float | None = None) -> Decelerating:
         """A transporter's motion with a bucket, slowing from ``speed_now`` (default: full).
@@ -159,7 +166,9 @@ class Params:
         The one place fatigue is defined: the Action layer moves by it and the upper
         layers estimate with it.
         """
-        start = self.speed if speed_now is None else speed_now
+        return self._carrying if speed_now is None else self._carrying_from(speed_now)
+
+    def _carrying_from(self, start: float) -> Decelerating:
         return Decelerating(start, self.deceleration, min(self.min_speed, start))
 
 

@@ -303,6 +303,34 @@ LINE = [
 # -- one transporter --------------------------------------------------------------------
 
 
+def test_a_robots_two_profiles_are_made_once_and_follow_its_speeds() -> None:
+    # Layers ask for them on every estimate: one object each keeps the phases a
+    # profile works out; replace() (a sweep's other speed) makes new ones.
+    params = Params(
+        kind=Kind.TRANSPORTER,
+        peers=(2,),
+        world=(10.0, 10.0),
+        speed=SPEED,
+        deceleration=DECELERATION,
+        min_speed=MIN_SPEED,
+        handover_time=HANDOVER,
+        range=5.0,
+        search_step=1.0,
+        retry_interval=1.0,
+        search_growth=2.0,
+        seed=1,
+    )
+    assert params.empty() is params.empty()
+    assert params.empty() == ConstantSpeed(SPEED)
+    assert params.carrying() is params.carrying()
+    assert params.carrying() == Decelerating(SPEED, DECELERATION, MIN_SPEED)
+    assert params.carrying(1.5) == Decelerating(1.5, DECELERATION, min(MIN_SPEED, 1.5))
+    slower = replace(params, speed=SPEED / 2)
+    assert slower.empty() == ConstantSpeed(SPEED / 2)
+    assert slower.carrying() == Decelerating(SPEED / 2, DECELERATION, min(MIN_SPEED, SPEED / 2))
+    assert slower == replace(slower)
+
+
 @pytest.mark.parametrize(
     ("search_range", "legs"),
     [
