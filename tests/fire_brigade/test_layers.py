@@ -75,6 +75,24 @@ def play(main: Callable[[], Coroutine[Any, Any, T]]) -> T:
     return cas_async.run(main(), virtual=True)
 
 
+def _params(kind: Kind, peers: tuple[int, ...], *, seed: int) -> Params:
+    """A robot's constants in these tests (a 10 x 10 world, the speeds above)."""
+    return Params(
+        kind=kind,
+        peers=peers,
+        world=(10.0, 10.0),
+        speed=SPEED,
+        deceleration=DECELERATION,
+        min_speed=MIN_SPEED,
+        handover_time=HANDOVER,
+        range=5.0,
+        search_step=1.0,
+        retry_interval=1.0,
+        search_growth=2.0,
+        seed=seed,
+    )
+
+
 @dataclass(frozen=True)
 class Spot:
     """Where a robot of a hand-built swarm stands at the start, and what it is."""
@@ -166,21 +184,8 @@ class Brigade:
         roster = tuple(spot.robot for spot in spots)
         self.robots: dict[int, Robot] = {}
         for spot in spots:
-            params = Params(
-                kind=spot.kind,
-                peers=tuple(r for r in roster if r != spot.robot),
-                world=(10.0, 10.0),
-                speed=SPEED,
-                deceleration=DECELERATION,
-                min_speed=MIN_SPEED,
-                handover_time=HANDOVER,
-                range=5.0,
-                search_step=1.0,
-                retry_interval=1.0,
-                search_growth=2.0,
-                seed=spot.robot,
-            )
-            params = replace(params, **changes)
+            peers = tuple(r for r in roster if r != spot.robot)
+            params = replace(_params(spot.kind, peers, seed=spot.robot), **changes)
             self.env.add_robot(spot.robot, Pose(spot.x, spot.y, spot.heading), mobile=params.mobile)
             middleware = SimulatedMiddleware(
                 self.env,
@@ -306,20 +311,7 @@ LINE = [
 def test_a_robots_two_profiles_are_made_once_and_follow_its_speeds() -> None:
     # Layers ask for them on every estimate: one object each keeps the phases a
     # profile works out; replace() (a sweep's other speed) makes new ones.
-    params = Params(
-        kind=Kind.TRANSPORTER,
-        peers=(2,),
-        world=(10.0, 10.0),
-        speed=SPEED,
-        deceleration=DECELERATION,
-        min_speed=MIN_SPEED,
-        handover_time=HANDOVER,
-        range=5.0,
-        search_step=1.0,
-        retry_interval=1.0,
-        search_growth=2.0,
-        seed=1,
-    )
+    params = _params(Kind.TRANSPORTER, (2,), seed=1)
     assert params.empty() is params.empty()
     assert params.empty() == ConstantSpeed(SPEED)
     assert params.carrying() is params.carrying()
