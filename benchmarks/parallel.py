@@ -16,7 +16,9 @@ for each N given, in fresh processes, one after the other. Figures per run:
   ``cas_async/scenario/_windows.py``) and windows per simulated second;
 * cross-process effects (datagrams and hand-over steps from a robot of one worker
   to a robot of another) per wall second;
-* the longest time a worker waited for the others and for grants (wall seconds);
+* the longest time a worker waited for the others and for grants (wall seconds), and
+  of that for grants alone (with every other window in: the world was on its way);
+* the world's wall seconds observing windows (its mirror, objective, trace, samples);
 * whether the results are identical to the one-process run's: ``trace.csv`` byte
   for byte, and ``results.json`` but for the figures of the distribution itself
   (workers, their wait, the cross-process effects) and the wall times.
@@ -48,7 +50,10 @@ ROOT: Final = Path(__file__).resolve().parent.parent
 SCENARIOS: Final = ROOT / "apps" / "fire_brigade" / "scenarios"
 SPEEDUP_TARGET: Final = 1.5
 TARGET_CASE: Final = ("scale_2500", 2)
-DISTRIBUTION_KEYS: Final = frozenset({"workers", "worker_waited_s", "cross_process_effects"})
+DISTRIBUTION_KEYS: Final = frozenset({
+    "workers", "worker_waited_s", "worker_waited_grant_s", "world_observing_s",
+    "cross_process_effects",
+})  # fmt: skip
 """``results.json`` ``extra`` figures that describe the distribution, not the run."""
 
 
@@ -124,6 +129,8 @@ def measure(
             "windows_per_sim_s": round(extra["windows"] / sim, 1) if extra.get("windows") else None,
             "effects_per_s": round(extra.get("cross_process_effects", 0) / wall, 1),
             "waited_s": extra.get("worker_waited_s"),
+            "grant_s": extra.get("worker_waited_grant_s"),
+            "observing_s": extra.get("world_observing_s"),
         }
         if alone is None:
             alone = last
@@ -159,15 +166,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name in args.scenarios.split(","):
             rows += measure(name, counts, args.seed, args.latency, args.runs, Path(work))
     header = ["scenario", "procs", "wall s", "cpu s", "speed-up", "sim s", "windows",
-              "win/sim s", "effects/s", "waited s", "identical"]  # fmt: skip
+              "win/sim s", "effects/s", "waited s", "grant s", "observing s",
+              "identical"]  # fmt: skip
     table = [
         [str(value) for value in (
             r["scenario"], r["processes"], r["wall_s"], r["cpu_s"], r["speedup"], r["sim_s"],
             r["windows"], r["windows_per_sim_s"], r["effects_per_s"], r["waited_s"],
+            r["grant_s"], r["observing_s"],
         )] + ["yes" if r["identical"] else f"NO: {', '.join(r['differs'])}"]
         for r in rows
     ]  # fmt: skip
-    print_aligned([header, *table], left={0, 10})
+    print_aligned([header, *table], left={0, len(header) - 1})
     for row in rows:
         print(json.dumps({"bench": "parallel", **row}))
     failed = [r for r in rows if r["status"] != "completed" or not r["identical"]]

@@ -33,7 +33,10 @@ RUN_LIMIT: Final = 180.0
 """Wall seconds one run may take (scale_250 in 3 processes: about 15 s on 2 free cores)."""
 MACHINE: Final = frozenset({"wall_time"})
 """Keys of ``results.json`` that measure the machine, not the run."""
-DISTRIBUTION: Final = frozenset({"workers", "worker_waited_s", "cross_process_effects"})
+DISTRIBUTION: Final = frozenset({
+    "workers", "worker_waited_s", "worker_waited_grant_s", "world_observing_s",
+    "cross_process_effects",
+})  # fmt: skip
 """Keys of ``results.json``'s ``extra`` that only a run across processes has."""
 
 
@@ -120,6 +123,10 @@ def test_the_results_are_the_figures_of_one_process(
     assert spread.results["extra"]["workers"] == processes
     assert spread.results["extra"]["cross_process_effects"] > 0
     assert "workers" not in alone.results["extra"]
+    # Where its wall time went: the world observed, workers waited (grants: a part of it).
+    extra = spread.results["extra"]
+    assert extra["world_observing_s"] > 0
+    assert 0 <= extra["worker_waited_grant_s"] <= extra["worker_waited_s"]
 
 
 def test_differences_name_every_key_that_differs_but_the_exempt_ones() -> None:

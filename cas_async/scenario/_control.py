@@ -220,11 +220,14 @@ class Bye(msgspec.Struct, frozen=True, tag="bye"):
     """A worker stopped: its last counts, and the wall seconds it spent waiting.
 
     ``waited``: for the others' windows and the world's grants (virtual time),
-    the part of a run across processes that is synchronisation, not simulation.
+    the part of a run across processes that is synchronisation, not simulation;
+    ``waited_grant``: the part of it after the others' windows were all in, for a
+    grant alone (the world was on the worker's way).
     """
 
     counts: Counts
     waited: float = 0.0
+    waited_grant: float = 0.0
 
 
 Control = Union[  # noqa: UP007

@@ -220,6 +220,7 @@ class _Worker:
         self._clock: Clock | None = None
         self._final: Counts | None = None  # the counts as the run ended (virtual time)
         self._waited = 0.0  # wall seconds waiting for the others and for grants
+        self._waited_grant = 0.0  # the part of it with every other window in: for a grant
         self._world_word = time.monotonic()  # when the world last said something
         self._world_suspect = False  # its token went: it has SUSPECT_LIMIT to say something
         self._world_lost: str | None = None
@@ -307,7 +308,8 @@ class _Worker:
             with contextlib.suppress(Exception):
                 if failed is not None:
                     channel.send("world", Failed(failed))
-                channel.send("world", Bye(self._final or self._counts(), round(self._waited, 3)))
+                waits = round(self._waited, 3), round(self._waited_grant, 3)
+                channel.send("world", Bye(self._final or self._counts(), *waits))
             for declared in (token, world_watch):
                 if declared is not None:
                     with contextlib.suppress(Exception):
@@ -359,7 +361,9 @@ class _Worker:
         peers = self._peers.pop(k, {})
         following = next_instant([own, *peers.values()], self._scenario.network.latency)
         if following < self._scenario.run.max_time:
+            heard = time.perf_counter()
             await self._until(lambda: k + 1 in self._grants)
+            self._waited_grant += time.perf_counter() - heard
         else:  # the run is over: the world stops it
             await self._until(lambda: False)
         self._waited += time.perf_counter() - began

@@ -145,7 +145,8 @@ class World:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._pids: dict[int, int] = {}  # a worker's process id (its hello's) -> its index
         self._shares: list[list[RobotId]] = []
-        self._waited: dict[int, float] = {}  # a worker -> wall seconds it waited (its Bye)
+        self._waited: dict[int, tuple[float, float]] = {}  # a worker -> its Bye's waits
+        self._observing = 0.0  # wall seconds the world spent observing windows
         self.rounds = 0
         """Windows closed so far (virtual time)."""
         self.effects = 0
@@ -256,7 +257,9 @@ class World:
             for window in windows.values():
                 self.effects += len(window.remote)
             completed = done()  # in the window before: this one was the last
+            began = time.perf_counter()
             await observer.window(end, [windows[w].observation for w in sorted(windows)])
+            self._observing += time.perf_counter() - began
             self.rounds += 1
             following = next_instant(windows.values(), latency)
             if completed or (done() and following >= max_time):
@@ -358,11 +361,10 @@ class World:
     def stats(self) -> dict[str, float | int | str]:
         """What the distribution cost: workers, windows, the longest wait of a worker.
 
-        ``cross_process_effects`` (datagrams, hand-over steps between workers);
-        ``worker_waited_s`` (for the others' windows and grants); on scaled time,
-        ``late_effects`` and ``most_late_s`` (how far the workers fell behind).
+        ``cross_process_effects`` (between workers' robots), wall seconds ``worker_waited_s``
+        (others' windows and grants; ``_grant_s``: grants alone), ``world_observing_s``; on
+        scaled time, ``late_effects`` and ``most_late_s`` (how far the workers fell behind).
         """
-        waited = max(self._waited.values(), default=0.0)
         if not self._scenario.run.virtual:  # scaled time: what came late, and how late
             counts = self._counts.values()
             return {
@@ -375,7 +377,9 @@ class World:
             "workers": self._workers,
             "windows": self.rounds,
             "cross_process_effects": self.effects,
-            "worker_waited_s": waited,
+            "worker_waited_s": max((w for w, _ in self._waited.values()), default=0.0),
+            "worker_waited_grant_s": max((g for _, g in self._waited.values()), default=0.0),
+            "world_observing_s": round(self._observing, 3),
         }
 
     def fault_counts(self) -> dict[str, int] | None:
@@ -435,12 +439,9 @@ class World:
         who = "a worker" if index is None else f"worker {index}"
         # Exit code 2 is a worker's configuration error: the run cannot start on its host.
         lost = WorkerRefused if setting_up and code == 2 else WorkerLost
-        self._lose(
-            lost(
-                f"{who} is gone: its process {pid} exited with code {code} {when}: {said}"
-                + ("" if index is None else lost_robots(self._shares, [index]))
-            )
-        )
+        robots = "" if index is None else lost_robots(self._shares, [index])
+        said = f"its process {pid} exited with code {code} {when}: {said}{robots}"
+        self._lose(lost(f"{who} is gone: {said}"))
 
     def _gone(self) -> set[int]:
         return {self._pids[pid] for pid in self._children.exited() if pid in self._pids}
@@ -450,7 +451,6 @@ class World:
         news = self._news
         assert news is not None
         began = time.monotonic()
-        deadline = began + seconds
         while not condition():
             if self._lost is not None:
                 raise self._lost
@@ -458,7 +458,7 @@ class World:
             gone = self._liveness.silent(sorted(set(self._pids.values())), began)
             if gone:
                 raise self._liveness.lost(gone, f" while the world waited for {what}")
-            if time.monotonic() > deadline:
+            if time.monotonic() > began + seconds:
                 raise WorkerLost(f"gave up after {seconds:g} s waiting for {what}")
             news.clear()
             await news.wait()  # news, or a tick
@@ -491,9 +491,9 @@ class World:
                 self._lose(WorkerRefused(f"worker {sender} refused the run: {error}"))
             case Failed(error=error):
                 self._lose(WorkerLost(f"worker {sender} failed: {error}"))
-            case Bye(counts=counts, waited=waited):
+            case Bye(counts=counts, waited=waited, waited_grant=grant):
                 self._counts[sender] = counts
-                self._waited[sender] = waited
+                self._waited[sender] = (waited, grant)
                 self._byes.add(sender)
                 self._liveness.said_bye(sender)
         if self._news is not None:

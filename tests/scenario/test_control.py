@@ -174,7 +174,7 @@ MESSAGES: list[Control] = [
     Beat(),
     Stop(),
     Failed("worker 1: boom"),
-    Bye(Counts(), waited=0.75),
+    Bye(Counts(), waited=0.75, waited_grant=0.25),
 ]
 
 
