@@ -210,7 +210,7 @@ def _world(args: argparse.Namespace, scenario: Scenario, key: SwarmKey | None) -
 def _command_worker(args: argparse.Namespace, stderr: TextIO) -> int:
     try:
         key = SwarmKey.from_file(args.key_file) if args.key_file else SwarmKey.from_env()
-        return run_worker(args.connect, key, listen=tuple(args.listen), quiet=args.quiet)
+        return run_worker(args.connect, key, listen=args.listen, quiet=args.quiet, wait=args.wait)
     except ConfigurationError as exc:
         print(f"error: {exc}", file=stderr)
         return EXIT_USAGE

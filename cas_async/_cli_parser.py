@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from pathlib import Path
 
 from . import _cli_view as views
 from ._swarm_key import SwarmKey
 from .scenario import FailOnDrops
+from .scenario._joining import CONNECT_WAIT
+
+_LONGEST_WAIT = 86_400.0
 
 __all__ = ["overrides_of", "parser"]
 
@@ -119,6 +123,9 @@ def parser() -> argparse.ArgumentParser:
     worker.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                         help="also listen here, so other workers link to this one directly "
                         "(peer mode); default: everything through the world's router")  # fmt: skip
+    worker.add_argument("--wait", type=_wait, default=CONNECT_WAIT, metavar="SECONDS",
+                        help="wait this long for the world to listen at --connect, trying "
+                        f"again (default {CONNECT_WAIT:g}; 0: fail at once)")  # fmt: skip
     worker.add_argument("--quiet", action="store_true",
                         help="do not say which robots this worker runs (on stderr)")  # fmt: skip
     sweeper = commands.add_parser(
@@ -153,6 +160,18 @@ def _at_least_one(text: str) -> int:
     if number < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
     return number
+
+
+def _wait(text: str) -> float:
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = math.nan
+    if not 0 <= seconds <= _LONGEST_WAIT:
+        raise argparse.ArgumentTypeError(
+            f"expected seconds from 0 to {_LONGEST_WAIT:g} (a day), got {text!r}"
+        )
+    return seconds
 
 
 def _drop_reasons(text: str) -> FailOnDrops:

@@ -32,6 +32,7 @@ from tests.processes_support import (
     processes,
     read_results,
     run_cli,
+    wait_for_line,
     wait_for_progress,
     wait_listening,
 )
@@ -112,10 +113,52 @@ def test_a_worker_with_no_world_at_its_endpoint_exits_naming_it(tmp_path: Path) 
     endpoint = free_endpoint()  # nothing listens there
     key = key_file(tmp_path / "swarm.key")
     started = time.monotonic()
-    finished = run_cli(tmp_path / "logs", "worker", "--connect", endpoint, "--key-file", key)
+    finished = run_cli(tmp_path / "logs", "worker", "--connect", endpoint, "--key-file", key,
+                       "--wait", "0")  # fmt: skip
     assert finished.code == 2, finished.output
     assert finished.output.startswith(f"error: worker: cannot connect to {endpoint}")
     assert time.monotonic() - started < 20  # the Zenoh client gives up at once (~0.6 s)
+
+
+def test_a_worker_waits_for_its_world_to_listen_then_gives_up_naming_it(tmp_path: Path) -> None:
+    endpoint = free_endpoint()  # nothing listens there
+    key = key_file(tmp_path / "swarm.key")
+    started = time.monotonic()
+    finished = run_cli(tmp_path / "logs", "worker", "--connect", endpoint, "--key-file", key,
+                       "--wait", "1.5")  # fmt: skip
+    took = time.monotonic() - started
+    assert finished.code == 2, finished.output
+    assert f"nothing listens at {endpoint} yet; trying again for up to 1.5 s" in finished.output
+    assert f"error: worker: cannot connect to {endpoint} within 1.5 s" in finished.output
+    assert "Traceback" not in finished.output
+    assert 1.5 <= took < 30
+
+
+@pytest.mark.parametrize("wait", ["-1", "nan", "1e9", "soon"])
+def test_a_worker_refuses_an_absurd_wait(tmp_path: Path, wait: str) -> None:
+    finished = run_cli(tmp_path / "logs", "worker", "--connect", free_endpoint(), "--wait", wait)
+    assert finished.code == 2, finished.output
+    assert f"argument --wait: expected seconds from 0 to 86400 (a day), got {wait!r}" in (
+        finished.output
+    )
+
+
+def test_workers_started_before_their_world_wait_for_it_and_run(tmp_path: Path) -> None:
+    """A launcher may start every process at once: workers wait for the world to listen."""
+    key, endpoint, out = key_file(tmp_path / "swarm.key"), free_endpoint(), tmp_path / "out"
+    with processes(tmp_path / "logs") as started:
+        waiting = ("worker", "--connect", endpoint, "--key-file", key, "--wait", str(RUN_LIMIT))
+        workers = [started.start(f"worker{k}", *waiting) for k in range(2)]
+        for worker in workers:
+            wait_for_line(worker, f"nothing listens at {re.escape(endpoint)} yet")
+        world = started.start(
+            "world", "world", SCENARIO, "--listen", endpoint, "--workers", "2",
+            "--key-file", key, "--virtual", "--out", out, "--no-plots",
+        )  # fmt: skip
+        assert world.wait(RUN_LIMIT) == 0, world.output()
+        for worker in workers:
+            assert worker.wait(EXIT_LIMIT) == 0, worker.output()
+    assert_all_delivered(read_results(out))
 
 
 def test_workers_started_by_hand_with_the_key_run_it_and_a_wrong_key_is_told_at_once(

@@ -198,7 +198,7 @@ class Refused(msgspec.Struct, frozen=True, tag="refused"):
     """The world's answer to a hello whose tag does not check against its key.
 
     Signed with the world's key, which the worker's does not check either: what
-    the worker learns is that the keys differ (see :func:`~._worker.join`).
+    the worker learns is that the keys differ (see :func:`~._joining.join`).
     """
 
     reason: str

@@ -6,7 +6,7 @@ nonce) until it is answered under ``welcome/<nonce>``: :class:`~._control.Welcom
 robots) while there are places, :class:`~._control.Full` after. A hello older than
 :data:`HELLO_AGE` is a replay, refused. A hello whose tag does not check against
 the world's key gets :class:`~._control.Refused`, which the worker cannot check
-either: it learns that the keys differ, and says so (see :func:`~._worker.join`),
+either: it learns that the keys differ, and says so (see :func:`~._joining.join`),
 and the world says once that a worker's hello did not check.
 """
 

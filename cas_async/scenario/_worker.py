@@ -1,7 +1,7 @@
 """A worker process of a run across processes: its share of the robots, window by window.
 
 ``python -m cas_async worker --connect ENDPOINT`` (or a child of ``run --processes``)
-joins the world through its lobby, builds the scenario the world sends (every
+joins the world (:mod:`._joining`), builds the scenario the world sends (every
 robot, with the run's seed: the application draws the same numbers in every
 process) and starts its share. Its robots talk through a
 :class:`~._network.ProcessNetwork`; on virtual time its loop moves in windows
@@ -23,12 +23,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
-import secrets
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -50,10 +48,8 @@ from ._control import (
     Control,
     Counts,
     Failed,
-    Full,
     Go,
     Grant,
-    Hello,
     Ready,
     Stop,
     Welcome,
@@ -62,8 +58,8 @@ from ._control import (
     token_lives,
 )
 from ._gc_policy import young_generation_for
+from ._joining import CONNECT_WAIT, join, refuse
 from ._loader import Scenario, scenario_from_data
-from ._lobby import LOBBY
 from ._network import ProcessNetwork
 from ._observer import Recorder
 from ._processes import WorkerLost, within
@@ -76,85 +72,32 @@ HEARTBEAT: Final = 0.05
 """Wall seconds between two reports of a worker's simulated time, on scaled time."""
 COUNTS_EVERY: Final = 1.0
 """Wall seconds between two counts a worker reports (the last ones come with its ``Bye``)."""
-_HELLO_EVERY: Final = 0.25
-_REFUSAL_LIMIT: Final = 5.0
-"""Wall seconds a worker that refuses the run waits for the world to hear it."""
-_REFUSAL_FLUSH: Final = 0.2
-"""Wall seconds a worker that refuses the run keeps its session open for its word to go."""
-
-
-async def join(connect: str, key: SwarmKey | None, limit: float) -> Welcome:
-    """Joins the world at ``connect`` through its lobby; returns its :class:`Welcome`.
-
-    Raises:
-        ConfigurationError: the world cannot be reached, or has its workers.
-        WorkerLost: no answer within ``limit`` wall seconds (no world there, or a wrong key).
-    """
-    zenoh = import_zenoh()
-    config = loopback_config(mode="client", listen=[], connect=[connect])
-    try:
-        session = await asyncio.to_thread(zenoh.open, config)
-    except Exception as exc:
-        raise ConfigurationError(f"worker: cannot connect to {connect}: {exc}") from exc
-    nonce = secrets.token_hex(8)
-    answer: asyncio.Future[Control] = asyncio.get_running_loop().create_future()
-
-    def handle(suffix: str, sender: int, message: Control) -> None:
-        if suffix == f"welcome/{nonce}" and sender == WORLD and not answer.done():
-            answer.set_result(message)
-
-    def refused(suffix: str, reason: str) -> None:
-        if suffix == f"welcome/{nonce}" and not answer.done():
-            answer.set_exception(
-                ConfigurationError(
-                    f"worker: the world at {connect} signs with another key than this "
-                    f"worker's ({reason} answer): start the worker with the world's key "
-                    f"file (--key-file, or {SwarmKey.ENV_VAR})"
-                )
-            )
-
-    lobby = Channel(session, LOBBY, int(nonce, 16) & 0x7FFFFFFF, key, handle, refused)
-    try:
-        lobby.listen(f"welcome/{nonce}")
-        deadline = time.monotonic() + limit
-        while not answer.done():
-            if time.monotonic() > deadline:
-                raise WorkerLost(f"worker: no answer from a world at {connect} (a wrong key?)")
-            if not list(session.info.routers_zid()):  # it was there: zenoh.open connected
-                raise WorkerLost(f"worker: the world at {connect} went away before it answered")
-            lobby.send(f"hello/{nonce}", Hello(nonce, time.time(), os.getpid()))
-            with contextlib.suppress(WorkerLost):
-                await within(asyncio.shield(answer), _HELLO_EVERY, "the world's welcome")
-        message = answer.result()
-    finally:
-        lobby.close()
-        session.close()
-    match message:
-        case Welcome():
-            return message
-        case Full(workers=workers):
-            raise ConfigurationError(f"worker: the world at {connect} has its {workers} workers")
-    raise WorkerLost(f"worker: the world at {connect} answered {type(message).__name__}")
 
 
 def run_worker(
-    connect: str, key: SwarmKey | None, *, listen: tuple[str, ...] = (), quiet: bool = False
+    connect: str,
+    key: SwarmKey | None,
+    *,
+    listen: Sequence[str] = (),
+    quiet: bool = False,
+    wait: float = CONNECT_WAIT,
 ) -> int:
     """A worker process from start to end: joins the world at ``connect``, runs its share.
 
     Says on stderr which worker it is and which robots it runs, unless ``quiet``
     (a worker the world started itself). Returns the exit code: 0 when the world
-    stopped the run, 1 when this worker failed.
+    stopped the run, 1 when this worker failed. ``wait``: wall seconds to wait for
+    the world to listen at ``connect`` (see :func:`connected`).
 
     Raises:
         ConfigurationError: the world cannot be reached, or refused this worker.
         WorkerLost: the world did not answer.
     """
-    welcome = asyncio.run(join(connect, key, 60.0))
+    welcome = asyncio.run(join(connect, key, 60.0, wait))
     try:
         scenario = scenario_from_data(Path(welcome.path), welcome.data)
     except ConfigurationError as exc:  # its app cannot be imported here, say
-        asyncio.run(_refuse(connect, key, welcome, str(exc)))
+        asyncio.run(refuse(connect, key, welcome, str(exc)))
         raise
     if not quiet:
         share = welcome.shares[welcome.index]
@@ -163,7 +106,7 @@ def run_worker(
             + ", ".join(map(str, share)),
             file=sys.stderr,
         )
-    worker = _Worker(scenario, welcome, connect, key, listen)
+    worker = _Worker(scenario, welcome, connect, key, tuple(listen))
     # As in a run in one process, the collector's youngest generation is sized to the
     # robots built here while they run: every robot of the run (see _gc_policy).
     # Without it a worker of scale_2500 holding all the robots took 47 CPU s, not 38.
@@ -172,22 +115,6 @@ def run_worker(
             with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
                 return runner.run(worker.run())
         return run(worker.run())
-
-
-async def _refuse(connect: str, key: SwarmKey | None, welcome: Welcome, error: str) -> None:
-    """Tells the world that the run cannot start here, and why (it stops waiting for us)."""
-    zenoh = import_zenoh()
-    config = loopback_config(mode="client", listen=[], connect=[connect])
-    with contextlib.suppress(Exception):  # the error is said here anyway
-        session = await asyncio.to_thread(zenoh.open, config)
-        try:
-            channel = Channel(session, welcome.namespace, welcome.index, key, lambda *_: None)
-            await channel.send_when_heard(
-                "world", Failed(error, configuration=True), _REFUSAL_LIMIT
-            )
-            await asyncio.sleep(_REFUSAL_FLUSH)  # a put on its way when the session closes is lost
-        finally:
-            session.close()
 
 
 class _Worker:
