@@ -87,7 +87,7 @@ def run_worker(
     Says on stderr which worker it is and which robots it runs, unless ``quiet``
     (a worker the world started itself). Returns the exit code: 0 when the world
     stopped the run, 1 when this worker failed. ``wait``: wall seconds to wait for
-    the world to listen at ``connect`` (see :func:`connected`).
+    the world to listen at ``connect`` (see :func:`~._joining.connected`).
 
     Raises:
         ConfigurationError: the world cannot be reached, or refused this worker.
