@@ -134,10 +134,10 @@ def workers_by_hand_cannot_import_the_app(tmp: Path) -> Outcome:
         )  # fmt: skip
         wait_listening(endpoint, world)
         began = time.monotonic()
-        workers = [
-            started.start(f"worker{k}", "worker", "--connect", endpoint, "--key-file", key)
-            for k in range(2)
-        ]
+        # --wait 0: the world may be gone before the second worker connects; it then
+        # exits at once (by default it would try again for 30 s, see test_distributed).
+        at_once = ("worker", "--connect", endpoint, "--key-file", key, "--wait", "0")
+        workers = [started.start(f"worker{k}", *at_once) for k in range(2)]
         codes = [worker.wait(WORKER_EXIT_LIMIT + 20) for worker in workers]
         return _finish(world, began, out, worker_codes=codes,
                        worker_errors=[worker.errors() for worker in workers])  # fmt: skip

@@ -80,7 +80,7 @@ def test_a_worker_sizes_the_young_generation_to_every_robot_it_builds(
     welcome = Welcome(0, "run", str(scenario.path), scenario.data, shares)
     seen: list[int] = []
 
-    async def join(connect: str, key: object, limit: float) -> Welcome:
+    async def join(*_: object) -> Welcome:
         return welcome
 
     class Running:
