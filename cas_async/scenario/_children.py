@@ -1,6 +1,6 @@
 """The worker processes a world starts itself (``run --processes N``): spawned, watched, reaped.
 
-Each child is ``python -m cas_async worker --connect ENDPOINT --quiet`` with the
+Each child is ``python -m cas_async worker --connect ENDPOINT --quiet --wait 0`` with the
 run's key in its environment. Its stderr passes through to the world's (the last
 lines are kept, to say why it went), and its exit is reported at once, with the
 code and those lines: the world decides whether it is a loss (a worker that
@@ -49,9 +49,10 @@ class Children:
         env = {**os.environ}
         if key is not None:
             env[SwarmKey.ENV_VAR] = key.secret.hex()
-        for _ in range(count):
+        for _ in range(count):  # the world listens already: a worker that finds none, fails
             child = await asyncio.create_subprocess_exec(
                 sys.executable, "-m", "cas_async", "worker", "--connect", endpoint, "--quiet",
+                "--wait", "0",
                 env=env, stdin=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.PIPE,
             )  # fmt: skip
             self._processes.append(child)
