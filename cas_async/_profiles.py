@@ -129,15 +129,29 @@ class SpeedProfile(ABC):
 
 
 @dataclass(frozen=True, slots=True)
-class PiecewiseSpeed(SpeedProfile):
-    """Any profile given by its phases (see :func:`check_phases` for the contract)."""
+class _KeepsStarts(SpeedProfile):
+    """A profile of this module: its starts worked out on first use, and kept.
 
-    parts: tuple[Phase, ...]
+    ``_starts`` is left out of ``__init__``, equality, hash and repr, so a profile
+    that has worked them out equals, hashes and prints as its fresh copy.
+    """
+
     _starts: Starts | None = field(default=None, init=False, repr=False, compare=False)
 
     def starts(self) -> Starts:
-        """As :meth:`SpeedProfile.starts`, worked out once."""
-        return self._starts or _keep_starts(self)
+        """As :meth:`SpeedProfile.starts`, worked out once (a frozen value: set once)."""
+        starts = self._starts
+        if starts is None:
+            starts = tuple(phase_starts(self.phases()))
+            object.__setattr__(self, "_starts", starts)
+        return starts
+
+
+@dataclass(frozen=True, slots=True)
+class PiecewiseSpeed(_KeepsStarts):
+    """Any profile given by its phases (see :func:`check_phases` for the contract)."""
+
+    parts: tuple[Phase, ...]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "parts", check_phases(self.parts))
@@ -148,7 +162,7 @@ class PiecewiseSpeed(SpeedProfile):
 
 
 @dataclass(frozen=True, slots=True)
-class ConstantSpeed(SpeedProfile):
+class ConstantSpeed(_KeepsStarts):
     """A constant speed: ``distance(t) = speed * t``.
 
     Raises:
@@ -156,11 +170,6 @@ class ConstantSpeed(SpeedProfile):
     """
 
     speed: float
-    _starts: Starts | None = field(default=None, init=False, repr=False, compare=False)
-
-    def starts(self) -> Starts:
-        """As :meth:`SpeedProfile.starts`, worked out once."""
-        return self._starts or _keep_starts(self)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.speed) and self.speed > 0):
@@ -177,7 +186,7 @@ class ConstantSpeed(SpeedProfile):
 
 
 @dataclass(frozen=True, slots=True)
-class Decelerating(SpeedProfile):
+class Decelerating(_KeepsStarts):
     """Speed ``initial_speed - deceleration * t``, down to ``min_speed``, then constant.
 
     The thesis's fatigue of a robot carrying a load: it slows down steadily until
@@ -198,11 +207,6 @@ class Decelerating(SpeedProfile):
     initial_speed: float
     deceleration: float
     min_speed: float
-    _starts: Starts | None = field(default=None, init=False, repr=False, compare=False)
-
-    def starts(self) -> Starts:
-        """As :meth:`SpeedProfile.starts`, worked out once."""
-        return self._starts or _keep_starts(self)
 
     def __post_init__(self) -> None:
         for name in ("initial_speed", "deceleration", "min_speed"):
@@ -246,10 +250,3 @@ class Decelerating(SpeedProfile):
         if speed == self.initial_speed:
             return self
         return Decelerating(speed, self.deceleration, self.min_speed)
-
-
-def _keep_starts(profile: PiecewiseSpeed | ConstantSpeed | Decelerating) -> Starts:
-    """Works out ``profile``'s starts and keeps them on it (a frozen value: set once)."""
-    starts = tuple(phase_starts(profile.phases()))
-    object.__setattr__(profile, "_starts", starts)
-    return starts
