@@ -95,11 +95,13 @@ class Clock(ABC):
 
     def now(self) -> float:
         """Simulated seconds since the clock started."""
-        loop = asyncio.get_running_loop()
-        if self._origin is None:
+        loop, origin = self._loop, self._origin
+        if loop is None or origin is None:  # not started: starts on the running loop
             self.start()
-        assert self._origin is not None
-        return (loop.time() - self._origin) / self._loop_time_per_sim_second()
+            loop, origin = self._loop, self._origin
+            assert loop is not None
+            assert origin is not None
+        return (loop.time() - origin) / self._loop_time_per_sim_second()
 
     async def sleep(self, seconds: float) -> None:
         """Waits ``seconds`` of simulated time (a non-positive value just yields).

@@ -402,14 +402,14 @@ class Environment(Handovers):
                 everyone = self.positions_at(t)
                 return nearest_first(everyone.ids, everyone.xy, everyone.xy[index], radius, index)
             xy = seen.positions(t)
-            xy[index] = self._table.positions_of(t, np.array([index], dtype=np.intp))[0]
+            xy[index] = self._table.position(index, t)
             return nearest_first(self._row_ids(), xy, xy[index], radius, index)
         rows = np.fromiter((index, *near), dtype=np.intp, count=len(near) + 1)
         if seen is None:
             xy = self._table.positions_of(t, rows)
         else:  # the asker where it is, the others where they are seen
             xy = seen.positions_of(t, rows)
-            xy[0] = self._table.positions_of(t, rows[:1])[0]
+            xy[0] = self._table.position(index, t)
         return nearest_first(self._row_ids()[rows], xy, xy[0], radius, 0)
 
     def _near(self, index: int, radius: float, t: float) -> set[int] | None:
@@ -427,7 +427,7 @@ class Environment(Handovers):
                     return None
                 self._cell_size = radius
             grid = self._grid = self._build_grid(self._cell_size)
-        x, y = self._table.positions_of(t, np.array([index], dtype=np.intp))[0].tolist()
+        x, y = self._table.position(index, t)
         box = (x - radius, y - radius, x + radius, y + radius)
         if grid.cells_over(*box) > len(self._robots):
             return None

@@ -16,8 +16,6 @@ import asyncio
 import math
 from collections.abc import Callable
 
-import numpy as np
-
 from .._clock import Clock
 from .._deliveries import ITEM, RECEIPT, Deliveries
 from .._errors import SimulationError
@@ -212,7 +210,7 @@ class Handovers:
         here = self.pose_at(receiver, t)
         seen = self._seen
         assert seen is not None
-        x, y = seen.positions_of(t, np.array([self._robot(giver).index], dtype=np.intp))[0].tolist()
+        x, y = seen.position(self._robot(giver).index, t)
         distance = math.hypot(here.x - x, here.y - y)
         if distance > reach:
             return (

@@ -108,6 +108,35 @@ class SegmentTable:
         """
         return self._evaluate(t, self._rows[indices], indices)
 
+    def position(self, index: int, t: float) -> tuple[float, float]:
+        """Row ``index``'s position at absolute instant ``t``: that row of :meth:`positions`.
+
+        The same arithmetic on plain floats, in the same order (IEEE doubles either
+        way), for the single rows a query asks about: numpy's cost per call is most
+        of the work for one row.
+        """
+        t_translate, t_end, x0, y0, x1, y1, length = self._rows[index].tolist()
+        tau = t - t_translate
+        if tau <= 0:
+            return x0, y0
+        if not t < t_end:
+            return x1, y1
+        if not length > 0:  # (no motion translates nowhere over time; numpy's NaNs)
+            x, y = self.positions_of(t, np.array([index], dtype=np.intp))[0].tolist()
+            return x, y
+        phases = self._phases[index].tolist()
+        start, covered, speed, acceleration = phases[-1]  # in force: the last one started
+        for phase in phases:
+            if phase[_P_START] > tau:
+                break
+            start, covered, speed, acceleration = phase
+        into = tau - start
+        travelled = covered + into * (speed + 0.5 * acceleration * into)
+        # np.maximum's and np.minimum's choices: NaN stays NaN, -0.0 becomes 0.0.
+        clipped = travelled if travelled > 0.0 or travelled != travelled else 0.0
+        share = min(clipped, length) / length
+        return x0 + share * (x1 - x0), y0 + share * (y1 - y0)
+
     def box(self, index: int) -> tuple[float, float, float, float]:
         """Row ``index``'s segment ``(x0, y0, x1, y1)``: the row is on it at every instant."""
         row = self._rows[index]
@@ -120,10 +149,9 @@ class SegmentTable:
         indices: npt.NDArray[np.intp] | None,
     ) -> npt.NDArray[np.float64]:
         """Positions of ``rows``, which are rows ``indices`` of the table (``None``: all)."""
-        xy = rows[:, [_X1, _Y1]].copy()
         tau = t - rows[:, _T_TRANSLATE]
         waiting = tau <= 0
-        xy[waiting] = rows[waiting][:, [_X0, _Y0]]
+        xy = np.where(waiting[:, None], rows[:, _X0 : _Y0 + 1], rows[:, _X1 : _Y1 + 1])
         moving = np.flatnonzero(~waiting & (t < rows[:, _T_END]))
         if moving.size:
             table_rows = moving if indices is None else indices[moving]
@@ -139,13 +167,15 @@ class SegmentTable:
         rows: npt.NDArray[np.float64],
     ) -> None:
         phases = self._phases[table_rows]
-        # The phase in force is the last one that has started (the first starts at 0).
-        current = (phases[:, :, _P_START] <= tau[:, None]).sum(axis=1) - 1
-        phase = phases[np.arange(moving.size), current]
-        into = tau - phase[:, _P_START]
-        travelled = phase[:, _P_DIST] + into * (
-            phase[:, _P_SPEED] + 0.5 * phase[:, _P_ACCEL] * into
-        )
-        share = np.clip(travelled, 0.0, rows[:, _LENGTH]) / rows[:, _LENGTH]
-        xy[moving, 0] = rows[:, _X0] + share * (rows[:, _X1] - rows[:, _X0])
-        xy[moving, 1] = rows[:, _Y0] + share * (rows[:, _Y1] - rows[:, _Y0])
+        # The phase in force is the last one that has started. The first starts at 0,
+        # before ``tau``; a row without phases has only padding, in any slot.
+        current = np.zeros(moving.size, dtype=np.intp)
+        for later in range(1, phases.shape[1]):
+            current += phases[:, later, _P_START] <= tau
+        phase = phases[np.arange(moving.size), current].T
+        into = tau - phase[_P_START]
+        travelled = phase[_P_DIST] + into * (phase[_P_SPEED] + 0.5 * phase[_P_ACCEL] * into)
+        length = rows[:, _LENGTH]
+        share = np.minimum(np.maximum(travelled, 0.0), length) / length
+        start = rows[:, _X0 : _Y0 + 1]
+        xy[moving] = start + share[:, None] * (rows[:, _X1 : _Y1 + 1] - start)

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cas_async import ConstantSpeed, Decelerating, Pose, Positions
-from cas_async.sim import Environment, Motion
+from cas_async import ConstantSpeed, Decelerating, PiecewiseSpeed, Pose, Positions
+from cas_async.sim import Environment, Motion, Phase
 from cas_async.sim._grid import CellGrid
 from cas_async.sim._segments import SegmentTable
 
@@ -133,6 +133,38 @@ def test_positions_of_some_rows_are_those_rows_of_all_positions() -> None:
     for t in (0.0, 2.5, 6.1, 40.0):
         assert table.positions_of(t, rows).tolist() == table.positions(t)[rows].tolist()
     assert table.box(3)[:2] == tuple(table.positions(-math.inf)[3].tolist())
+
+
+def test_the_position_of_one_row_is_that_row_of_all_positions_to_the_last_bit() -> None:
+    """position() computes one row in plain floats; it must give numpy's very numbers."""
+    table = SegmentTable()
+    rng = np.random.default_rng(11)
+    three_phases = PiecewiseSpeed(
+        (Phase(0.7, 0.0, 2.0), Phase(1.1, 1.4, -0.5), Phase(math.inf, 0.85, 0.0))
+    )
+    profiles = [ConstantSpeed(3.0), Decelerating(3.0, 0.5, 0.6), three_phases]
+    boundaries: list[float] = []
+    for k in range(120):
+        here = Pose(*rng.uniform(-20, 20, 2), rng.uniform(-3, 3))
+        if k % 10 == 0:
+            motion = Motion.standing(here)
+        elif k % 10 == 1:
+            motion = Motion.turn_to(here, rng.uniform(-3, 3), turn_rate=1.0)
+        else:
+            target = rng.uniform(-20, 20, 2)
+            profile = profiles[k % 3]
+            motion = Motion.straight_to(here, *target, turn_rate=math.pi, profile=profile)
+        start = float(rng.uniform(0, 8))
+        table.append(start, motion)
+        # the instants its translation, each phase and the motion begin or end
+        moving = start + motion.rotation_time
+        starts = motion.profile.starts() if motion.profile is not None else ()
+        boundaries += [start + motion.duration, *(moving + t0 for t0, _, _ in starts)]
+    instants = [-math.inf, 0.0, *rng.uniform(0, 60, 300).tolist(), *boundaries]
+    for t in instants:
+        everyone = table.positions(t)
+        for row in range(len(table)):
+            assert table.position(row, t) == tuple(everyone[row].tolist()), (row, t)
 
 
 # -- Environment.within with the grid ---------------------------------------------------------

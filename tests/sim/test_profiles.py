@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from cas_async import ConstantSpeed, Decelerating, PiecewiseSpeed, SimulationError, SpeedProfile
 from cas_async._phases import phase_starts
+from cas_async._profiles import _merged
 from cas_async.sim import Phase, check_phases, closing_time
 
 INF = math.inf
@@ -151,6 +152,20 @@ def test_ageing_is_a_time_shift(profile: SpeedProfile, first: float, then: float
     expected = profile.distance(first + then) - profile.distance(first)
     assert aged.distance(then) == pytest.approx(expected, rel=1e-9, abs=1e-9)
     assert aged.speed_at(then) == pytest.approx(profile.speed_at(first + then), abs=1e-9)
+
+
+# A phase too short to move the clock: it starts at the very instant of the next one.
+BLINK = PiecewiseSpeed((Phase(1e6, 1.0, 0.0), Phase(1e-12, 1.0, 0.5), Phase(INF, 1.0, 0.0)))
+
+
+@given(st.one_of(profiles, st.just(BLINK), st.just(Halving())), st.floats(0, 2e6))
+def test_one_profiles_closing_time_is_the_general_ones_figure_for_figure(
+    profile: SpeedProfile, distance: float
+) -> None:
+    """A single profile takes a shortcut through its phases: it must not change a bit."""
+    general = _merged(distance, [profile.starts()])
+    assert closing_time(distance, (profile,)) == general
+    assert profile.time_for(distance) == general
 
 
 @given(profiles, profiles, st.floats(0, 200))
