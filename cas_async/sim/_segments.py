@@ -28,6 +28,9 @@ _COLUMNS: Final = 7
 # speed at start, acceleration. Unused phase slots start at +inf, never in force.
 _P_START, _P_DIST, _P_SPEED, _P_ACCEL = range(4)
 
+_UNUSED: Final = [math.inf, 0.0, 0.0, 0.0]
+"""The fields of an unused phase slot."""
+
 _INITIAL_CAPACITY: Final = 64
 
 
@@ -37,10 +40,15 @@ class SegmentTable:
     def __init__(self) -> None:
         self._n = 0
         self._rows = np.zeros((_INITIAL_CAPACITY, _COLUMNS))
-        self._phases = self._empty_phases(_INITIAL_CAPACITY, 1)
+        self._keep_phases(self._empty_phases(_INITIAL_CAPACITY, 1))
 
     def __len__(self) -> int:
         return self._n
+
+    def _keep_phases(self, phases: npt.NDArray[np.float64]) -> None:
+        """Holds ``phases``, and its rows flat: one assignment writes a row's phases."""
+        self._phases = phases
+        self._flat = phases.reshape(phases.shape[0], -1)
 
     @staticmethod
     def _empty_phases(rows: int, width: int) -> npt.NDArray[np.float64]:
@@ -56,7 +64,8 @@ class SegmentTable:
             rows[: self._n] = self._rows[: self._n]
             phases = self._empty_phases(grown, self._phases.shape[1])
             phases[: self._n] = self._phases[: self._n]
-            self._rows, self._phases = rows, phases
+            self._rows = rows
+            self._keep_phases(phases)
         self._n += 1
         self.set(self._n - 1, start_time, motion)
 
@@ -74,15 +83,16 @@ class SegmentTable:
             motion.length,
         )
         phases = () if motion.profile is None else motion.profile.starts()
-        if len(phases) > self._phases.shape[1]:
+        width = self._phases.shape[1]
+        if len(phases) > width:
             wider = self._empty_phases(self._phases.shape[0], len(phases))
-            wider[:, : self._phases.shape[1]] = self._phases
-            self._phases = wider
-        row = self._phases[index]
-        row[:] = 0.0
-        row[:, _P_START] = math.inf
-        for k, (t0, d0, phase) in enumerate(phases):
-            row[k] = (t0, d0, phase.speed, phase.acceleration)
+            wider[:, :width] = self._phases
+            self._keep_phases(wider)
+            width = len(phases)
+        values: list[float] = []
+        for t0, d0, phase in phases:
+            values += (t0, d0, phase.speed, phase.acceleration)
+        self._flat[index] = values + _UNUSED * (width - len(phases))
 
     def delete(self, index: int) -> None:
         """Removes row ``index``; later rows move up by one (order is kept)."""
