@@ -56,6 +56,8 @@ def closing_time(distance: float, profiles: Iterable[SpeedProfile]) -> float:
         raise SimulationError("closing_time needs at least one speed profile")
     if len(tables) == 1:
         return _time_for(distance, tables[0])
+    if len(tables) == 2:
+        return _meeting(distance, *tables)
     return _merged(distance, tables)
 
 
@@ -73,6 +75,28 @@ def _merged(distance: float, tables: list[Starts]) -> float:
         covered = sum([d0 + phase.distance(begin - t0) for t0, d0, phase in current])
         speed = sum([phase.speed_at(begin - t0) for t0, _, phase in current])
         acceleration = sum([phase.acceleration for _, _, phase in current])
+        return begin + min(solve(speed, acceleration, distance - covered), end - begin)
+    raise AssertionError("unreachable: the last interval is an unbounded cruise")
+
+
+def _meeting(distance: float, first: Starts, second: Starts) -> float:
+    """:func:`_merged` of two tables (two robots meeting): the same arithmetic, unrolled.
+
+    ``sum`` of two floats is ``0.0 + a + b``, in that order, on every Python.
+    """
+    bounds = sorted({start for start, _, _ in first} | {start for start, _, _ in second})
+    last = len(bounds) - 1
+    for index, begin in enumerate(bounds):
+        end = bounds[index + 1] if index < last else math.inf
+        t1, d1, one = first[locate(first, begin)]
+        t2, d2, two = second[locate(second, begin)]
+        if end < math.inf:
+            reach = 0.0 + (d1 + one.distance(end - t1)) + (d2 + two.distance(end - t2))
+            if reach < distance:
+                continue
+        covered = 0.0 + (d1 + one.distance(begin - t1)) + (d2 + two.distance(begin - t2))
+        speed = 0.0 + one.speed_at(begin - t1) + two.speed_at(begin - t2)
+        acceleration = 0.0 + one.acceleration + two.acceleration
         return begin + min(solve(speed, acceleration, distance - covered), end - begin)
     raise AssertionError("unreachable: the last interval is an unbounded cruise")
 

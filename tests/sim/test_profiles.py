@@ -168,6 +168,17 @@ def test_one_profiles_closing_time_is_the_general_ones_figure_for_figure(
     assert profile.time_for(distance) == general
 
 
+@given(
+    st.one_of(profiles, st.just(BLINK)), st.one_of(profiles, st.just(Halving())), st.floats(0, 2e6)
+)
+def test_two_profiles_closing_time_is_the_general_ones_figure_for_figure(
+    a: SpeedProfile, b: SpeedProfile, distance: float
+) -> None:
+    """Two robots meeting take a shortcut too: it must not change a bit either."""
+    assert closing_time(distance, (a, b)) == _merged(distance, [a.starts(), b.starts()])
+    assert closing_time(distance, (b, a)) == _merged(distance, [b.starts(), a.starts()])
+
+
 @given(profiles, profiles, st.floats(0, 200))
 def test_closing_time_covers_the_distance_together(
     a: SpeedProfile, b: SpeedProfile, distance: float
