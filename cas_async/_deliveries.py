@@ -137,8 +137,9 @@ class Deliveries:
         deliveries after it still run.
         """
         heap, ran = self._heap, 0
+        pop = heapq.heappop
         while heap and heap[0][0] <= now:
-            *_, action = heapq.heappop(heap)
+            action = pop(heap)[3]
             ran += 1
             try:
                 action()

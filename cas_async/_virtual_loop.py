@@ -80,13 +80,15 @@ class _JumpingSelector(selectors.BaseSelector):
 
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
         self._unpolled += 1
-        ready: list[tuple[selectors.SelectorKey, int]] = []
         if self._unpolled >= POLL_EVERY:
             self._unpolled = 0
             ready = self._inner.select(0)
-        if ready or (timeout is not None and timeout <= 0):
+            if ready:
+                self._loop.busy_pass()
+                return ready
+        if timeout is not None and timeout <= 0:
             self._loop.busy_pass()
-            return ready
+            return []
         # Idle: nothing to run before the next timer or I/O.
         if self._loop.wake_idle_waiters():  # they look first; time moves after
             return []
@@ -222,6 +224,8 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
 
     def wake_idle_waiters(self) -> bool:
         """Completes the futures of :meth:`idle` (the loop is idle); whether there were any."""
+        if not self._idle_waiters:
+            return False
         waiters = [future for future in self._idle_waiters if not future.done()]
         self._idle_waiters.clear()
         for future in waiters:
