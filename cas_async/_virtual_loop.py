@@ -256,8 +256,12 @@ class VirtualTimeLoop(asyncio.SelectorEventLoop):
         if due <= timer and due != math.inf:
             assert deliveries is not None
             self._virtual_now = max(self._virtual_now, due)
-            # The first callback of the pass: before the timers of the same instant.
-            self.call_soon(deliveries.run_due, self._virtual_now)
+            if due < timer:
+                # No timer of this instant: they run now, and what they wake runs in
+                # this very pass, as it would have in the next (one pass less each).
+                deliveries.run_due(self._virtual_now)
+            else:  # the first callback of the pass: before the timers of the same instant
+                self.call_soon(deliveries.run_due, self._virtual_now)
             return []
         if timeout is None:  # no timer at all: only another thread can wake us
             return selector.select(None)

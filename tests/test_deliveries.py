@@ -136,6 +136,37 @@ async def test_deliveries_of_an_instant_run_before_its_timers_even_those_armed_f
 
 
 @pytest.mark.cas_virtual
+async def test_what_a_delivery_wakes_runs_before_a_timer_it_arms_for_its_own_instant() -> None:
+    """At an instant with no timer, the loop runs its deliveries without a pass of their own."""
+    loop = asyncio.get_running_loop()
+    log: Log = []
+    woken = loop.create_future()
+
+    async def sleeper() -> None:
+        await woken
+        log.append((loop.time(), "task woken"))
+
+    def action() -> None:
+        log.append((loop.time(), "delivery"))
+        loop.call_at(loop.time(), logger(log, loop, "timer armed for now"))
+        woken.set_result(None)
+        loop.call_soon(logger(log, loop, "soon"))
+
+    task = asyncio.ensure_future(sleeper())
+    loop.call_at(2.0, logger(log, loop, "timer at 2"))
+    Deliveries.of().at(1.5, (DATAGRAM, 1, 1), action)
+    await task
+    await asyncio.sleep(1.0)
+    assert log == [
+        (1.5, "delivery"),
+        (1.5, "task woken"),
+        (1.5, "soon"),
+        (1.5, "timer armed for now"),
+        (2.0, "timer at 2"),
+    ]
+
+
+@pytest.mark.cas_virtual
 async def test_the_loop_jumps_to_a_delivery_when_no_timer_is_armed() -> None:
     loop = asyncio.get_running_loop()
     assert isinstance(loop, VirtualTimeLoop)
