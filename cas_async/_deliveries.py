@@ -133,8 +133,9 @@ class Deliveries:
     def run_due(self, now: float) -> int:
         """Runs every delivery due at or before loop time ``now``, in order; how many ran.
 
-        An action that raises is reported to the loop's exception handler: the
-        deliveries after it still run.
+        An action that raises is reported to the loop's exception handler, as a
+        loop callback's would be (a virtual loop runs this inside its selector, not
+        as a callback): the deliveries after it still run.
         """
         heap, ran = self._heap, 0
         pop = heapq.heappop
@@ -143,7 +144,9 @@ class Deliveries:
             ran += 1
             try:
                 action()
-            except Exception as exc:
+            except (SystemExit, KeyboardInterrupt):
+                raise
+            except BaseException as exc:  # a CancelledError too, as asyncio's Handle does
                 self._loop.call_exception_handler(
                     {"message": "a delivery failed", "exception": exc}
                 )

@@ -223,12 +223,15 @@ async def test_on_virtual_time_a_delivery_due_at_or_before_now_is_refused(ahead:
 
 
 @pytest.mark.cas_virtual
-async def test_an_action_that_raises_is_reported_and_the_others_still_run() -> None:
+@pytest.mark.parametrize("error", [RuntimeError, asyncio.CancelledError])
+async def test_an_action_that_raises_is_reported_and_the_others_still_run(
+    error: type[BaseException],
+) -> None:
     loop = asyncio.get_running_loop()
     deliveries, log = Deliveries.of(), []
 
     def broken() -> None:
-        raise RuntimeError("the receiver broke")
+        raise error("the receiver broke")
 
     deliveries.at(1.0, (DATAGRAM, 1, 1), logger(log, loop, "before"))
     deliveries.at(1.0, (DATAGRAM, 2, 1), broken)

@@ -131,7 +131,7 @@ class SegmentTable:
             return x0, y0
         if not t < t_end:
             return x1, y1
-        if not length > 0:  # (no motion translates nowhere over time; numpy's NaNs)
+        if not length > 0:  # under way without translating (no motion does): numpy's NaNs
             x, y = self.positions_of(t, np.array([index], dtype=np.intp))[0].tolist()
             return x, y
         phases = self._phases[index].tolist()
