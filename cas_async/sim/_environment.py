@@ -396,24 +396,25 @@ class Environment(Handovers):
             raise SimulationError(f"radius must be >= 0, got {radius!r}")
         check_instant(t)
         seen = self._seen
-        near = self._near(index, radius, t)
+        here = self._table.position(index, t)  # the asker where it is
+        near = self._near(index, here, radius)
         if near is None:
             if seen is None:
                 everyone = self.positions_at(t)
                 return nearest_first(everyone.ids, everyone.xy, everyone.xy[index], radius, index)
             xy = seen.positions(t)
-            xy[index] = self._table.position(index, t)
+            xy[index] = here
             return nearest_first(self._row_ids(), xy, xy[index], radius, index)
         rows = np.fromiter((index, *near), dtype=np.intp, count=len(near) + 1)
         if seen is None:
             xy = self._table.positions_of(t, rows)
-        else:  # the asker where it is, the others where they are seen
+        else:  # the others where they are seen
             xy = seen.positions_of(t, rows)
-            xy[0] = self._table.position(index, t)
+            xy[0] = here
         return nearest_first(self._row_ids()[rows], xy, xy[0], radius, 0)
 
-    def _near(self, index: int, radius: float, t: float) -> set[int] | None:
-        """Rows that may be within ``radius`` of row ``index`` at ``t``, itself left out.
+    def _near(self, index: int, here: tuple[float, float], radius: float) -> set[int] | None:
+        """Rows that may be within ``radius`` of row ``index``, at ``here``, itself left out.
 
         ``None`` when the grid would not help: a small swarm, an infinite radius, or
         a box spanning more cells than there are robots.
@@ -427,7 +428,7 @@ class Environment(Handovers):
                     return None
                 self._cell_size = radius
             grid = self._grid = self._build_grid(self._cell_size)
-        x, y = self._table.position(index, t)
+        x, y = here
         box = (x - radius, y - radius, x + radius, y + radius)
         if grid.cells_over(*box) > len(self._robots):
             return None
