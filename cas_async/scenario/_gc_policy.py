@@ -20,7 +20,7 @@ import gc
 from collections.abc import Iterator
 from typing import Final
 
-__all__ = ["young_generation_for"]
+__all__ = ["while_building", "young_generation_for"]
 
 PER_ROBOT: Final = 40
 """Allocations between two young collections, per robot of the swarm."""
@@ -49,3 +49,17 @@ def young_generation_for(robots: int) -> Iterator[int]:
     finally:
         if gc.get_threshold()[0] == wanted:
             gc.set_threshold(first, *gc.get_threshold()[1:])
+
+
+@contextlib.contextmanager
+def while_building() -> Iterator[int]:
+    """Within the block, collects the youngest generation every ``CEILING`` allocations.
+
+    For building a mission, before the number of its robots is known: what a
+    build allocates lives as long as the run, so young collections free next to
+    nothing, and the full collections that their promotions set off traverse
+    every robot built so far (building ``scale_10000`` took 4.0 s, 1.8 s of them
+    in 11 full collections; 2.2 s with this). Yields the threshold used.
+    """
+    with young_generation_for(CEILING // PER_ROBOT) as used:
+        yield used

@@ -30,7 +30,7 @@ from .._swarm import Swarm
 from .._swarm_key import SwarmKey
 from ..sim._environment import Environment
 from ._app import Mission, objective_of
-from ._gc_policy import young_generation_for
+from ._gc_policy import while_building, young_generation_for
 from ._layers import check_built
 from ._listener import Listeners, RunListener
 from ._loader import Scenario
@@ -106,7 +106,9 @@ class ScenarioRun:
         self._complete = asyncio.Event()
         self._listeners = Listeners()
         transport = transport_for(scenario, clock, key, world)
-        self._mission = mission = scenario.app.build(scenario.setup(environment, clock, transport))
+        with while_building():
+            setup = scenario.setup(environment, clock, transport)
+            self._mission = mission = scenario.app.build(setup)
         try:
             check_built(getattr(scenario.app, "stack", ()), scenario.layers, mission.robots)
         except ConfigurationError as error:
@@ -237,8 +239,10 @@ class ScenarioRun:
 
     async def __aenter__(self) -> ScenarioRun:
         """Starts the robots; when ``stop`` is set meanwhile, the start is undone instead."""
-        # While the swarm runs, the collector's youngest generation is sized to it.
-        self._gc.enter_context(young_generation_for(len(self._placement.swarm)))
+        # While the swarm runs, the collector's youngest generation is sized to it: to
+        # every robot the run simulates or observes (a world observes its workers' robots).
+        robots = max(len(self._placement.swarm), len(self._placement.environment))
+        self._gc.enter_context(young_generation_for(robots))
         try:
             self._placement.arm()  # before any robot's first instant
             starting = asyncio.ensure_future(self._placement.start())
