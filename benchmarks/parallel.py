@@ -19,6 +19,8 @@ for each N given, in fresh processes, one after the other. Figures per run:
 * the longest time a worker waited for the others and for grants (wall seconds), and
   of that for grants alone (with every other window in: the world was on its way);
 * the world's wall seconds observing windows (its mirror, objective, trace, samples);
+* the load imbalance: summed over windows, the busiest worker's time over the
+  average worker's (every window waits for its slowest worker; 1 is balanced);
 * whether the results are identical to the one-process run's: ``trace.csv`` byte
   for byte, and ``results.json`` but for the figures of the distribution itself
   (workers, their wait, the cross-process effects) and the wall times.
@@ -52,9 +54,19 @@ SPEEDUP_TARGET: Final = 1.5
 TARGET_CASE: Final = ("scale_2500", 2)
 DISTRIBUTION_KEYS: Final = frozenset({
     "workers", "worker_waited_s", "worker_waited_grant_s", "world_observing_s",
-    "cross_process_effects",
+    "cross_process_effects", "window_busy_mean_s", "window_busy_max_s",
 })  # fmt: skip
 """``results.json`` ``extra`` figures that describe the distribution, not the run."""
+
+
+def imbalance(extra: dict[str, Any]) -> float | None:
+    """Window by window, the busiest worker's time over the average worker's (1: balanced).
+
+    Every window ends for everyone when its slowest worker is done: this is what
+    the shared barrier costs (see ``cas_async/scenario/_window_costs.py``).
+    """
+    mean, most = extra.get("window_busy_mean_s"), extra.get("window_busy_max_s")
+    return round(most / mean, 2) if mean and most else None
 
 
 def cpu_of_children() -> float:
@@ -131,6 +143,7 @@ def measure(
             "waited_s": extra.get("worker_waited_s"),
             "grant_s": extra.get("worker_waited_grant_s"),
             "observing_s": extra.get("world_observing_s"),
+            "imbalance": imbalance(extra),
         }
         if alone is None:
             alone = last
@@ -167,12 +180,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             rows += measure(name, counts, args.seed, args.latency, args.runs, Path(work))
     header = ["scenario", "procs", "wall s", "cpu s", "speed-up", "sim s", "windows",
               "win/sim s", "effects/s", "waited s", "grant s", "observing s",
-              "identical"]  # fmt: skip
+              "busy max/mean", "identical"]  # fmt: skip
     table = [
         [str(value) for value in (
             r["scenario"], r["processes"], r["wall_s"], r["cpu_s"], r["speedup"], r["sim_s"],
             r["windows"], r["windows_per_sim_s"], r["effects_per_s"], r["waited_s"],
-            r["grant_s"], r["observing_s"],
+            r["grant_s"], r["observing_s"], r["imbalance"],
         )] + ["yes" if r["identical"] else f"NO: {', '.join(r['differs'])}"]
         for r in rows
     ]  # fmt: skip

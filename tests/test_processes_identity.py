@@ -35,7 +35,7 @@ MACHINE: Final = frozenset({"wall_time"})
 """Keys of ``results.json`` that measure the machine, not the run."""
 DISTRIBUTION: Final = frozenset({
     "workers", "worker_waited_s", "worker_waited_grant_s", "world_observing_s",
-    "cross_process_effects",
+    "cross_process_effects", "window_busy_mean_s", "window_busy_max_s",
 })  # fmt: skip
 """Keys of ``results.json``'s ``extra`` that only a run across processes has."""
 
@@ -127,6 +127,8 @@ def test_the_results_are_the_figures_of_one_process(
     extra = spread.results["extra"]
     assert extra["world_observing_s"] > 0
     assert 0 <= extra["worker_waited_grant_s"] <= extra["worker_waited_s"]
+    # How busy the workers were, window by window: on average, and the busiest.
+    assert 0 < extra["window_busy_mean_s"] <= extra["window_busy_max_s"]
 
 
 def test_differences_name_every_key_that_differs_but_the_exempt_ones() -> None:

@@ -174,7 +174,12 @@ class Go(msgspec.Struct, frozen=True, tag="go"):
 
 
 class Window(msgspec.Struct, frozen=True, tag="window"):
-    """What a worker's robots did in window ``k`` (``-1`` on scaled time), and what comes next."""
+    """What a worker's robots did in window ``k`` (``-1`` on scaled time), and what comes next.
+
+    ``busy``: wall seconds the worker spent on the window, from when it could run
+    it (the others' windows before it in hand, and the grant) until it published
+    it (see :mod:`._window_costs`).
+    """
 
     k: int
     next_event: float
@@ -182,6 +187,7 @@ class Window(msgspec.Struct, frozen=True, tag="window"):
     remote: list[Remote]
     counts: Counts
     stopped: bool = False
+    busy: float = 0.0
 
 
 class Grant(msgspec.Struct, frozen=True, tag="grant"):

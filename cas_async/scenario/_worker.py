@@ -148,6 +148,7 @@ class _Worker:
         self._final: Counts | None = None  # the counts as the run ended (virtual time)
         self._waited = 0.0  # wall seconds waiting for the others and for grants
         self._waited_grant = 0.0  # the part of it with every other window in: for a grant
+        self._resumed = 0.0  # when the window running could start (perf_counter)
         self._world_word = time.monotonic()  # when the world last said something
         self._world_suspect = False  # its token went: it has SUSPECT_LIMIT to say something
         self._world_lost: str | None = None
@@ -207,6 +208,7 @@ class _Worker:
                 assert isinstance(loop, VirtualTimeLoop)
                 first_end = loop.time() + scenario.network.latency
                 loop.run_windows(Windows(loop, first_end, self._close, idle=self._tick))
+                self._resumed = time.perf_counter()
             elif isinstance(clock, ScaledClock):
                 clock.start_at_wall(epoch)
                 await asyncio.sleep(max(0.0, epoch - time.time()))  # nothing before time 0
@@ -280,7 +282,8 @@ class _Worker:
         counts = Counts()
         if time.monotonic() - self._counted >= COUNTS_EVERY:
             self._counted, counts = time.monotonic(), self._counts()
-        own = Window(k, next_event, recorder.take(), network.take_outgoing(), counts)
+        busy = time.perf_counter() - self._resumed
+        own = Window(k, next_event, recorder.take(), network.take_outgoing(), counts, busy=busy)
         channel.send(f"win/{self._index}", own)
         others = len(self._welcome.shares) - 1
         began = time.perf_counter()
@@ -293,7 +296,8 @@ class _Worker:
             self._waited_grant += time.perf_counter() - heard
         else:  # the run is over: the world stops it
             await self._until(lambda: False)
-        self._waited += time.perf_counter() - began
+        self._resumed = time.perf_counter()
+        self._waited += self._resumed - began
         if stop.is_set():
             self._final = self._counts()  # as the run ended: before the robots stop
             loop = asyncio.get_running_loop()

@@ -62,6 +62,7 @@ from ._partition import lost_robots, partition
 from ._processes import WorkerLost, WorkerRefused
 from ._results import RunStatus
 from ._tally import summed_faults, summed_messages
+from ._window_costs import WindowCosts
 
 __all__ = ["World"]
 
@@ -145,12 +146,8 @@ class World:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._pids: dict[int, int] = {}  # a worker's process id (its hello's) -> its index
         self._shares: list[list[RobotId]] = []
-        self._waited: dict[int, tuple[float, float]] = {}  # a worker -> its Bye's waits
-        self._observing = 0.0  # wall seconds the world spent observing windows
-        self.rounds = 0
-        """Windows closed so far (virtual time)."""
-        self.effects = 0
-        """Effects (datagrams, hand-over steps) from a worker's robots to another's."""
+        self.costs = WindowCosts()
+        """What the windows cost: rounds, cross-process effects, waits (see :meth:`stats`)."""
         self.endpoint = ""
         """Where the router listens, once started."""
 
@@ -254,13 +251,10 @@ class World:
                 return RunStatus.FAILED, lost
             if windows is None:
                 return RunStatus.INTERRUPTED, None
-            for window in windows.values():
-                self.effects += len(window.remote)
             completed = done()  # in the window before: this one was the last
             began = time.perf_counter()
             await observer.window(end, [windows[w].observation for w in sorted(windows)])
-            self._observing += time.perf_counter() - began
-            self.rounds += 1
+            self.costs.closed(windows.values(), time.perf_counter() - began)
             following = next_instant(windows.values(), latency)
             if completed or (done() and following >= max_time):
                 return RunStatus.COMPLETED, None
@@ -362,25 +356,17 @@ class World:
         """What the distribution cost: workers, windows, the longest wait of a worker.
 
         ``cross_process_effects`` (between workers' robots), wall seconds ``worker_waited_s``
-        (others' windows and grants; ``_grant_s``: grants alone), ``world_observing_s``; on
+        (others' windows and grants; ``_grant_s``: grants alone), ``world_observing_s``,
+        ``window_busy_mean_s`` and ``window_busy_max_s`` (see :mod:`._window_costs`); on
         scaled time, ``late_effects`` and ``most_late_s`` (how far the workers fell behind).
         """
-        if not self._scenario.run.virtual:  # scaled time: what came late, and how late
+        virtual = self._scenario.run.virtual
+        stats = self.costs.stats(self._workers, virtual=virtual)
+        if not virtual:  # scaled time: what came late, and how late
             counts = self._counts.values()
-            return {
-                "workers": self._workers,
-                "cross_process_effects": self.effects,
-                "late_effects": sum(c.late for c in counts),
-                "most_late_s": max((c.most_late for c in counts), default=0.0),
-            }
-        return {
-            "workers": self._workers,
-            "windows": self.rounds,
-            "cross_process_effects": self.effects,
-            "worker_waited_s": max((w for w, _ in self._waited.values()), default=0.0),
-            "worker_waited_grant_s": max((g for _, g in self._waited.values()), default=0.0),
-            "world_observing_s": round(self._observing, 3),
-        }
+            stats["late_effects"] = sum(c.late for c in counts)
+            stats["most_late_s"] = max((c.most_late for c in counts), default=0.0)
+        return stats
 
     def fault_counts(self) -> dict[str, int] | None:
         """The ``[faults]`` counts of every worker's robots, summed (``None``: no faults)."""
@@ -482,7 +468,7 @@ class World:
                 if k >= 0:
                     self._windows.setdefault(k, {})[sender] = message
                 else:  # scaled time: its robots' records so far, and where its time is
-                    self.effects += len(message.remote)
+                    self.costs.flowed(message)
                     self._flowing.append(message.observation)
                     self._heard[sender] = max(self._heard.get(sender, 0.0), message.next_event)
             case Ready():
@@ -493,7 +479,7 @@ class World:
                 self._lose(WorkerLost(f"worker {sender} failed: {error}"))
             case Bye(counts=counts, waited=waited, waited_grant=grant):
                 self._counts[sender] = counts
-                self._waited[sender] = (waited, grant)
+                self.costs.waited(sender, waited, grant)
                 self._byes.add(sender)
                 self._liveness.said_bye(sender)
         if self._news is not None:

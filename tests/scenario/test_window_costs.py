@@ -1,0 +1,46 @@
+"""What a run across processes spent on its windows, from what its workers report."""
+
+from __future__ import annotations
+
+import msgspec
+import pytest
+
+from cas_async.scenario._control import Counts, Remote, Window
+from cas_async.scenario._observer import Observation
+from cas_async.scenario._window_costs import WindowCosts
+
+
+def window(k: int, busy: float, effects: int = 0) -> Window:
+    remote = [Remote(0.1, 1, 2, n, 3) for n in range(effects)]
+    return Window(k, 0.0, Observation(), remote, Counts(), busy=busy)
+
+
+def test_the_barrier_costs_the_busiest_worker_window_by_window() -> None:
+    costs = WindowCosts()
+    costs.closed([window(0, 1.0, effects=2), window(0, 3.0)], observing=0.5)
+    costs.closed([window(1, 2.0), window(1, 2.0, effects=1)], observing=0.25)
+    costs.waited(0, 4.0, 1.0)
+    costs.waited(1, 6.0, 0.5)
+    assert costs.stats(2, virtual=True) == {
+        "workers": 2,
+        "windows": 2,
+        "cross_process_effects": 3,
+        "worker_waited_s": 6.0,
+        "worker_waited_grant_s": 1.0,
+        "world_observing_s": 0.75,
+        "window_busy_mean_s": 4.0,  # 2 + 2
+        "window_busy_max_s": 5.0,  # 3 + 2
+    }
+
+
+def test_scaled_time_counts_the_effects_as_they_flow() -> None:
+    costs = WindowCosts()
+    costs.flowed(window(-1, 0.0, effects=2))
+    costs.flowed(window(-1, 0.0, effects=1))
+    assert costs.stats(3, virtual=False) == {"workers": 3, "cross_process_effects": 3}
+
+
+@pytest.mark.parametrize("busy", [0.0, 0.125])
+def test_a_window_carries_how_long_its_worker_was_busy(busy: float) -> None:
+    sent = window(4, busy)
+    assert msgspec.msgpack.decode(msgspec.msgpack.encode(sent), type=Window) == sent
