@@ -59,6 +59,16 @@ class Pose:
     heading: float = 0.0
 
     def __post_init__(self) -> None:
+        x, y, heading = self.x, self.y, self.heading
+        if (
+            type(x) is float  # not a subclass (numpy's float64): those are coerced below
+            and type(y) is float
+            and type(heading) is float
+            and x - x == 0.0  # finite: inf - inf and NaN - NaN are NaN
+            and y - y == 0.0
+            and -math.pi < heading <= math.pi  # then normalize_angle returns it, bit for bit
+        ):
+            return  # most poses: made from another's floats, nothing to coerce or normalise
         # object.__setattr__ is the documented way to normalise a frozen dataclass.
         object.__setattr__(self, "x", _finite("x", self.x))
         object.__setattr__(self, "y", _finite("y", self.y))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
 import pytest
@@ -45,6 +46,42 @@ def test_pose_normalises_heading_and_coerces_numpy_scalars() -> None:
     assert pose == Pose(1.5, 2.0, PI)
     assert type(pose.x) is float
     assert type(pose.y) is float
+
+
+def bits(value: float) -> bytes:
+    return struct.pack("<d", value)  # tells -0.0 from 0.0
+
+
+def reference(x: float, y: float, heading: float) -> tuple[bytes, bytes, bytes] | str:
+    """What a pose holds, by the book: floats, finite, the heading normalised (or the error)."""
+    for name, value in (("x", x), ("y", y), ("heading", heading)):
+        if not math.isfinite(float(value)):
+            return f"{name} must be a finite number"
+    return bits(float(x)), bits(float(y)), bits(normalize_angle(float(heading)))
+
+
+@given(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.one_of(st.floats(), st.sampled_from([PI, -PI, -0.0, math.nextafter(-PI, 0), 3 * PI])),
+    st.sampled_from([float, np.float64]),
+)
+def test_a_pose_holds_its_values_by_the_book_to_the_bit(
+    x: float, y: float, heading: float, kind: type
+) -> None:
+    # Poses whose values are floats already in range skip the coercion: same bits.
+    expected = reference(x, y, heading)
+    if isinstance(expected, str):
+        with pytest.raises(SimulationError, match=f"^{expected}"):
+            Pose(kind(x), y, heading)
+        return
+    pose = Pose(kind(x), y, kind(heading))
+    assert (bits(pose.x), bits(pose.y), bits(pose.heading)) == expected
+    assert type(pose.x) is type(pose.heading) is float
+
+
+def test_minus_pi_is_folded_onto_pi() -> None:
+    assert bits(Pose(0.0, 0.0, -PI).heading) == bits(PI)
 
 
 def test_pose_is_frozen() -> None:
