@@ -15,8 +15,10 @@ counter-clockwise.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Final
 
 from .._errors import SimulationError
 from .._phases import Phase, check_phases
@@ -24,6 +26,30 @@ from .._pose import Pose, normalize_angle
 from .._profiles import PiecewiseSpeed, SpeedProfile
 
 __all__ = ["Motion", "check_turn_rate"]
+
+
+_PROFILES_KEPT: Final = 1024
+"""At most this many profiles :meth:`Motion.from_numbers` keeps (a swarm uses a few dozen)."""
+_profiles: dict[bytes, PiecewiseSpeed] = {}  # by their phases' bits: -0.0 is not 0.0
+
+
+def _profile_of(numbers: list[float]) -> PiecewiseSpeed:
+    """The profile of these phase numbers (3 per phase), the same object for the same bits.
+
+    Motions of a swarm share a few profiles (scale_250: 17 for 3,879 translations),
+    and a profile is a frozen value: building and checking it once is enough.
+
+    Raises:
+        SimulationError: the phases break the profile contract.
+    """
+    key = struct.pack(f"{len(numbers)}d", *numbers)
+    profile = _profiles.get(key)
+    if profile is None:
+        phases = (Phase(*numbers[i : i + 3]) for i in range(0, len(numbers), 3))
+        profile = PiecewiseSpeed(tuple(phases))
+        if len(_profiles) < _PROFILES_KEPT:
+            _profiles[key] = profile
+    return profile
 
 
 def check_turn_rate(turn_rate: float) -> float:
@@ -140,7 +166,6 @@ class Motion:
         if len(numbers) < 10 or (len(numbers) - 10) % 3:
             raise SimulationError(f"a motion is 10 numbers and 3 per phase, got {len(numbers)}")
         values = [float(n) for n in numbers]
-        phases = [Phase(*values[i : i + 3]) for i in range(10, len(values), 3)]
         turn, rotation_time, length, translation_time = values[6:10]
         return cls(
             Pose(*values[0:3]),
@@ -149,7 +174,7 @@ class Motion:
             rotation_time,
             length,
             translation_time,
-            PiecewiseSpeed(tuple(phases)) if phases else None,
+            _profile_of(values[10:]) if len(values) > 10 else None,
         )
 
     @property

@@ -49,6 +49,39 @@ def test_numbers_that_are_no_motion_are_refused(numbers: list[float]) -> None:
         Motion.from_numbers(numbers)
 
 
+def test_motions_with_the_same_phases_share_their_profile_and_keep_its_bits() -> None:
+    # A swarm's motions share a few profiles: each is built and checked once.
+    start = Pose(0, 0, 0)
+    profile = Decelerating(3.0, 0.2, 0.5)
+    one, two = (
+        Motion.from_numbers(Motion.straight_to(start, x, 0, turn_rate=1.0, profile=profile)
+                            .to_numbers())
+        for x in (30.0, 31.0)
+    )  # fmt: skip
+    assert one.profile is not None
+    assert one.profile is two.profile
+    # -0.0 and 0.0 are equal, not the same bits: they are two profiles.
+    numbers = Motion.straight_to(
+        start, 5, 0, turn_rate=1.0, profile=ConstantSpeed(2.0)
+    ).to_numbers()
+    assert numbers[-1] == 0.0
+    negative = Motion.from_numbers([*numbers[:-1], -0.0]).profile
+    positive = Motion.from_numbers(numbers).profile
+    assert negative is not None
+    assert positive is not None
+    assert math.copysign(1.0, negative.phases()[-1].acceleration) == -1.0
+    assert math.copysign(1.0, positive.phases()[-1].acceleration) == 1.0
+
+
+@pytest.mark.parametrize("repeat", [1, 2], ids=["first", "again"])
+def test_phases_that_break_the_profile_contract_are_refused_every_time(repeat: int) -> None:
+    numbers = Motion.straight_to(Pose(0, 0, 0), 5, 0, turn_rate=1.0, profile=ConstantSpeed(2.0))
+    broken = [*numbers.to_numbers()[:-3], 1.0, 2.0, 0.0]  # the last phase is no cruise
+    for _ in range(repeat):
+        with pytest.raises(SimulationError, match="the last phase must be a cruise"):
+            Motion.from_numbers(broken)
+
+
 @pytest.mark.cas_virtual
 async def test_watchers_see_every_motion_and_halt_and_a_replica_follows_exactly() -> None:
     clock = VirtualClock()
