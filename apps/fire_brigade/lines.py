@@ -15,7 +15,7 @@ robots' positions and on every exchange snapshot (``Mission.measures``).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Final
 
 import numpy as np
@@ -69,6 +69,12 @@ class LineShare:
         self._stations = np.array(stations, dtype=np.float64).reshape(-1, 2)
         self._near, self._away = near, away
         self._rows: tuple[tuple[int, ...], npt.NDArray[np.intp]] | None = None
+        # Each segment's and station's band of x, where the robots it may count are.
+        self._segment_bands = (
+            np.minimum(self._starts[:, 0], self._ends[:, 0]) - near,
+            np.maximum(self._starts[:, 0], self._ends[:, 0]) + near,
+        )
+        self._station_bands = (self._stations[:, 0] - away, self._stations[:, 0] + away)
 
     def __call__(self, ids: Sequence[int], xy: _FloatArray) -> float:
         """The share among the Transporters of ``ids`` at positions ``xy``."""
@@ -81,17 +87,24 @@ class LineShare:
         order = np.argsort(points[:, 0], kind="stable")
         xs = points[order, 0]
         on_line = np.zeros(len(points), dtype=np.bool_)
-        for start, end in zip(self._starts, self._ends, strict=True):
-            low, high = min(start[0], end[0]) - self._near, max(start[0], end[0]) + self._near
-            band = order[np.searchsorted(xs, low) : np.searchsorted(xs, high, side="right")]
-            near = _distance_to_segment(points[band], start, end) <= self._near
-            on_line[band[near]] = True
-        for station in self._stations:
-            low, high = station[0] - self._away, station[0] + self._away
-            band = order[np.searchsorted(xs, low) : np.searchsorted(xs, high, side="right")]
-            close = np.hypot(*(points[band] - station).T) <= self._away
+        for index, band in self._in_bands(order, xs, self._segment_bands):
+            near = _distance_to_segment(points[band], self._starts[index], self._ends[index])
+            on_line[band[near <= self._near]] = True
+        for index, band in self._in_bands(order, xs, self._station_bands):
+            close = np.hypot(*(points[band] - self._stations[index]).T) <= self._away
             on_line[band[close]] = False
         return float(np.count_nonzero(on_line)) / len(rows)
+
+    @staticmethod
+    def _in_bands(
+        order: npt.NDArray[np.intp], xs: _FloatArray, bands: tuple[_FloatArray, _FloatArray]
+    ) -> Iterator[tuple[int, npt.NDArray[np.intp]]]:
+        """Each band (by index) that holds robots, and their rows: ``xs`` is sorted by ``order``."""
+        lows = np.searchsorted(xs, bands[0]).tolist()
+        highs = np.searchsorted(xs, bands[1], side="right").tolist()
+        for index, (low, high) in enumerate(zip(lows, highs, strict=True)):
+            if low < high:
+                yield index, order[low:high]
 
     def _transporter_rows(self, ids: Sequence[int]) -> npt.NDArray[np.intp]:
         key = tuple(ids)
