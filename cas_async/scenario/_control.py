@@ -50,10 +50,11 @@ import hashlib
 import hmac
 import math
 from collections.abc import Callable, Iterable
-from typing import Any, Final, Union
+from typing import Annotated, Any, Final, Union
 
 import msgspec
 
+from .._message import finite
 from .._swarm_key import SwarmKey
 from ..transport._thread_inbox import ThreadInbox
 from ._observer import Observation
@@ -187,7 +188,7 @@ class Window(msgspec.Struct, frozen=True, tag="window"):
     remote: list[Remote]
     counts: Counts
     stopped: bool = False
-    busy: float = 0.0
+    busy: Annotated[float, finite(ge=0)] = 0.0
 
 
 class Grant(msgspec.Struct, frozen=True, tag="grant"):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import msgspec
 import pytest
 
@@ -44,3 +46,10 @@ def test_scaled_time_counts_the_effects_as_they_flow() -> None:
 def test_a_window_carries_how_long_its_worker_was_busy(busy: float) -> None:
     sent = window(4, busy)
     assert msgspec.msgpack.decode(msgspec.msgpack.encode(sent), type=Window) == sent
+
+
+@pytest.mark.parametrize("busy", [-1.0, math.nan, math.inf])
+def test_a_window_that_says_it_was_busy_for_no_time_at_all_does_not_decode(busy: float) -> None:
+    # What the world sums must stay a number: a forged or broken window is refused.
+    with pytest.raises(msgspec.ValidationError, match="busy"):
+        msgspec.msgpack.decode(msgspec.msgpack.encode(window(4, busy)), type=Window)
