@@ -71,11 +71,7 @@ __all__ = ["run_worker"]
 HEARTBEAT: Final = 0.05
 """Wall seconds between two reports of a worker's simulated time, on scaled time."""
 COUNTS_EVERY: Final = 1.0
-"""Wall seconds between two counts a worker reports, scaled time (the last: with its ``Bye``)."""
-COUNTS_EVERY_WINDOWED: Final = 10.0
-"""The same on virtual time. Counting passes over every robot's counters (13 ms for
-1,250 robots), and every other worker waits for it at the window's end; what a worker
-reports before its ``Bye`` only counts if it is lost before it says ``Bye``."""
+"""Wall seconds between two counts a worker reports (the last ones come with its ``Bye``)."""
 
 
 def run_worker(
@@ -284,7 +280,7 @@ class _Worker:
         assert recorder is not None and network is not None and channel is not None  # noqa: PT018
         assert stop is not None and news is not None  # noqa: PT018
         counts = Counts()
-        if time.monotonic() - self._counted >= COUNTS_EVERY_WINDOWED:
+        if time.monotonic() - self._counted >= COUNTS_EVERY:
             self._counted, counts = time.monotonic(), self._counts()
         busy = time.perf_counter() - self._resumed
         own = Window(k, next_event, recorder.take(), network.take_outgoing(), counts, busy=busy)
