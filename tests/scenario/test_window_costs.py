@@ -49,7 +49,7 @@ def test_a_window_carries_how_long_its_worker_was_busy(busy: float) -> None:
 
 
 @pytest.mark.parametrize("busy", [-1.0, math.nan, math.inf])
-def test_a_window_that_says_it_was_busy_for_no_time_at_all_does_not_decode(busy: float) -> None:
+def test_a_window_whose_busy_time_is_negative_or_not_finite_does_not_decode(busy: float) -> None:
     # What the world sums must stay a number: a forged or broken window is refused.
     with pytest.raises(msgspec.ValidationError, match="busy"):
         msgspec.msgpack.decode(msgspec.msgpack.encode(window(4, busy)), type=Window)
