@@ -42,10 +42,9 @@ class WindowCosts:
         """Every worker's window of one round, which the world took ``observing`` s to observe."""
         self.rounds += 1
         self._observing += observing
+        self.effects += sum(len(window.remote) for window in windows)
         busy = [window.busy for window in windows]
-        for window in windows:
-            self.effects += len(window.remote)
-        if busy:
+        if busy:  # a world has at least one worker
             self._busy_mean += sum(busy) / len(busy)
             self._busy_max += max(busy)
 

@@ -146,8 +146,7 @@ class World:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._pids: dict[int, int] = {}  # a worker's process id (its hello's) -> its index
         self._shares: list[list[RobotId]] = []
-        self.costs = WindowCosts()
-        """What the windows cost: rounds, cross-process effects, waits (see :meth:`stats`)."""
+        self._costs = WindowCosts()  # rounds, cross-process effects, waits (see stats)
         self.endpoint = ""
         """Where the router listens, once started."""
 
@@ -254,7 +253,7 @@ class World:
             completed = done()  # in the window before: this one was the last
             began = time.perf_counter()
             await observer.window(end, [windows[w].observation for w in sorted(windows)])
-            self.costs.closed(windows.values(), time.perf_counter() - began)
+            self._costs.closed(windows.values(), time.perf_counter() - began)
             following = next_instant(windows.values(), latency)
             if completed or (done() and following >= max_time):
                 return RunStatus.COMPLETED, None
@@ -361,7 +360,7 @@ class World:
         scaled time, ``late_effects`` and ``most_late_s`` (how far the workers fell behind).
         """
         virtual = self._scenario.run.virtual
-        stats = self.costs.stats(self._workers, virtual=virtual)
+        stats = self._costs.stats(self._workers, virtual=virtual)
         if not virtual:  # scaled time: what came late, and how late
             counts = self._counts.values()
             stats["late_effects"] = sum(c.late for c in counts)
@@ -468,7 +467,7 @@ class World:
                 if k >= 0:
                     self._windows.setdefault(k, {})[sender] = message
                 else:  # scaled time: its robots' records so far, and where its time is
-                    self.costs.flowed(message)
+                    self._costs.flowed(message)
                     self._flowing.append(message.observation)
                     self._heard[sender] = max(self._heard.get(sender, 0.0), message.next_event)
             case Ready():
@@ -479,7 +478,7 @@ class World:
                 self._lose(WorkerLost(f"worker {sender} failed: {error}"))
             case Bye(counts=counts, waited=waited, waited_grant=grant):
                 self._counts[sender] = counts
-                self.costs.waited(sender, waited, grant)
+                self._costs.waited(sender, waited, grant)
                 self._byes.add(sender)
                 self._liveness.said_bye(sender)
         if self._news is not None:
