@@ -38,6 +38,18 @@ class LayerCounters:
     external_by_type: dict[type[Any], int] = field(default_factory=dict)
     """``sent_external`` split by message class."""
 
+    def count_sent_internal(self, kind: type[Any]) -> None:
+        """One internal message of class ``kind`` sent."""
+        self.sent_internal += 1
+        by_type = self.internal_by_type
+        by_type[kind] = by_type.get(kind, 0) + 1
+
+    def count_sent_external(self, kind: type[Any]) -> None:
+        """One external message of class ``kind`` sent."""
+        self.sent_external += 1
+        by_type = self.external_by_type
+        by_type[kind] = by_type.get(kind, 0) + 1
+
     def as_dict(self) -> dict[str, int]:
         """The totals by name (the per-class splits are not included)."""
         return {name: getattr(self, name) for name in _TOTALS}

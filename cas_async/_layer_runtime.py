@@ -208,10 +208,7 @@ class LayerRuntime:
     def send_internal(self, dst: Level, msg: Message, corr_id: int = 0) -> None:
         """Stamps, counts and carries an owned internal message to layer ``dst``."""
         self.outbox.stamp(msg, self.level, dst, corr_id)
-        counters = self.counters
-        counters.sent_internal += 1
-        by_type = counters.internal_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
+        self.counters.count_sent_internal(msg.__class__)
         self.carry(msg)
 
     def carry(self, msg: Message) -> None:

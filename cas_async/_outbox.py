@@ -194,10 +194,8 @@ class Outbox:
     def send(self, sender: Sender, robot_id: RobotId, msg: Message) -> None:
         """Stamps, encodes and sends ``msg`` from layer ``sender`` to robot ``robot_id``.
 
-        The hot path of external traffic: stamped and counted inline, as
-        :meth:`transmit` does for the other kinds of message. No copy is needed
-        when the message is encoded before this returns; a codec that passes
-        objects sends a copy of one sent before.
+        No copy is needed when the message is encoded before this returns; a codec
+        that passes objects sends a copy of one sent before.
 
         A robot the transport does not know (it left, or never joined) is not an
         error: the message is dropped and counted as ``unknown_robot``.
@@ -215,19 +213,9 @@ class Outbox:
         codec = self._codec
         if codec.passes_objects:
             msg = owned(msg)
-        msg.msg_id = next(self._ids)
-        msg.robot_id = self.robot_id
-        msg.src_layer = msg.dst_layer = sender.level
-        msg.corr_id = 0
-        try:
-            self._endpoint.send(robot_id, codec.encode(msg))
-        except UnknownRobotError as exc:
-            self._drops.drop("unknown_robot", "%s: %s", type(msg).__name__, exc)
-            return
-        counters = sender.counters
-        counters.sent_external += 1
-        by_type = counters.external_by_type
-        by_type[msg.__class__] = by_type.get(msg.__class__, 0) + 1
+        level = sender.level
+        self.stamp(msg, level, level)
+        self.transmit(sender.counters, robot_id, codec.encode(msg), msg.__class__)
 
     def resend(self, counters: LayerCounters, robot_id: RobotId, msg: Message) -> None:
         """Sends a message already stamped by this robot again, unchanged (same id)."""
@@ -240,10 +228,7 @@ class Outbox:
         other robot handles the request once however often it is sent.
         """
         msg.msg_type = _NEGOTIATION
-        msg.msg_id = next(self._ids)
-        msg.robot_id = self.robot_id
-        msg.src_layer = msg.dst_layer = level
-        msg.corr_id = 0
+        self.stamp(msg, level, level)
         return self._codec.encode(msg)
 
     def broadcast(
@@ -288,21 +273,10 @@ class Outbox:
         """
         if response.msg_id:  # sent before (or the request itself): a copy
             response = copy.copy(response)
-        response.msg_id = next(self._ids)  # stamped inline: the hot path of answers
-        response.robot_id = self.robot_id
-        response.src_layer = response.dst_layer = level
-        response.corr_id = request_id
+        self.stamp(response, level, level, request_id)
         data = self._codec.encode(response)
         self._replies.keep(asker, request_id, data, self._now())
-        try:  # transmit(), inline
-            self._endpoint.send(asker, data)
-        except UnknownRobotError as exc:
-            self._drops.drop("reply_undeliverable", "%s: %s", type(response).__name__, exc)
-            return
-        counters.sent_external += 1
-        by_type = counters.external_by_type
-        kind = response.__class__
-        by_type[kind] = by_type.get(kind, 0) + 1
+        self.transmit(counters, asker, data, response.__class__, unknown="reply_undeliverable")
 
     def resend_reply(self, asker: RobotId, request_id: int) -> None:
         """Answers a repeated request with the reply kept for it, if any (not counted as sent)."""
@@ -326,17 +300,15 @@ class Outbox:
     ) -> bool:
         """Sends an encoded message of class ``kind`` and counts it; whether it went.
 
-        Every external message but a plain ``send`` (which inlines the same steps)
-        leaves the robot here: each attempt of a request, a reply, a resend, each
-        copy of a broadcast. A robot the transport does not know is a drop counted
-        under ``unknown`` (``False``), never an error.
+        Every external message leaves the robot here: each ``send``, each attempt
+        of a request, a reply, a resend, each copy of a broadcast. A robot the
+        transport does not know is a drop counted under ``unknown`` (``False``),
+        never an error.
         """
         try:
             self._endpoint.send(robot_id, data)
         except UnknownRobotError as exc:
             self._drops.drop(unknown, "%s: %s", kind.__name__, exc)
             return False
-        counters.sent_external += 1
-        by_type = counters.external_by_type
-        by_type[kind] = by_type.get(kind, 0) + 1
+        counters.count_sent_external(kind)
         return True
