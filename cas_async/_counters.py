@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["LayerCounters"]
+__all__ = ["LayerCounters", "count_sent_external", "count_sent_internal"]
 
 _TOTALS = (
     "sent_internal",
@@ -38,18 +38,6 @@ class LayerCounters:
     external_by_type: dict[type[Any], int] = field(default_factory=dict)
     """``sent_external`` split by message class."""
 
-    def count_sent_internal(self, kind: type[Any]) -> None:
-        """One internal message of class ``kind`` sent."""
-        self.sent_internal += 1
-        by_type = self.internal_by_type
-        by_type[kind] = by_type.get(kind, 0) + 1
-
-    def count_sent_external(self, kind: type[Any]) -> None:
-        """One external message of class ``kind`` sent."""
-        self.sent_external += 1
-        by_type = self.external_by_type
-        by_type[kind] = by_type.get(kind, 0) + 1
-
     def as_dict(self) -> dict[str, int]:
         """The totals by name (the per-class splits are not included)."""
         return {name: getattr(self, name) for name in _TOTALS}
@@ -70,3 +58,18 @@ class LayerCounters:
         for split, into in ((self.internal_by_type, internal), (self.external_by_type, external)):
             for cls, n in split.items():
                 into[cls] = into.get(cls, 0) + n
+
+
+# The runtime's own (not on LayerCounters, whose public face is what users read).
+def count_sent_internal(counters: LayerCounters, kind: type[Any]) -> None:
+    """One internal message of class ``kind`` sent by the layer of ``counters``."""
+    counters.sent_internal += 1
+    by_type = counters.internal_by_type
+    by_type[kind] = by_type.get(kind, 0) + 1
+
+
+def count_sent_external(counters: LayerCounters, kind: type[Any]) -> None:
+    """One external message of class ``kind`` sent by the layer of ``counters``."""
+    counters.sent_external += 1
+    by_type = counters.external_by_type
+    by_type[kind] = by_type.get(kind, 0) + 1

@@ -34,7 +34,7 @@ from typing import Final, TypeVar, final
 
 from ._backpressure import Flow
 from ._channel import Channel
-from ._counters import LayerCounters
+from ._counters import LayerCounters, count_sent_internal
 from ._errors import RequestTimeout, RobotGone, RobotStateError, RuleViolation
 from ._hooks import Hooks, Overrides, RobotHandle
 from ._logs import DropLog, PrefixLogger
@@ -208,7 +208,7 @@ class LayerRuntime:
     def send_internal(self, dst: Level, msg: Message, corr_id: int = 0) -> None:
         """Stamps, counts and carries an owned internal message to layer ``dst``."""
         self.outbox.stamp(msg, self.level, dst, corr_id)
-        self.counters.count_sent_internal(msg.__class__)
+        count_sent_internal(self.counters, msg.__class__)
         self.carry(msg)
 
     def carry(self, msg: Message) -> None:

@@ -24,7 +24,7 @@ import itertools
 from collections.abc import Callable, Iterable, Iterator
 from typing import Final, NoReturn, Protocol, final
 
-from ._counters import LayerCounters
+from ._counters import LayerCounters, count_sent_external
 from ._dedup import ReplyCache
 from ._errors import RobotStateError, UnknownRobotError
 from ._logs import DropLog
@@ -310,5 +310,5 @@ class Outbox:
         except UnknownRobotError as exc:
             self._drops.drop(unknown, "%s: %s", kind.__name__, exc)
             return False
-        counters.count_sent_external(kind)
+        count_sent_external(counters, kind)
         return True
