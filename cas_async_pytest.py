@@ -116,7 +116,7 @@ def _explain_shadow(report: pytest.CollectReport | pytest.TestReport) -> None:
 
     Run from the folder that contains a clone of the repository, ``import cas_async``
     finds the clone's folder, which has no ``__init__.py``: an empty namespace package
-    (see ``cas_async._shadow``). Looked at only when something failed, and without
+    (see ``cas_async._cli._shadow``). Looked at only when something failed, and without
     importing cas_async.
     """
     import importlib.util

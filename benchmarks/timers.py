@@ -5,7 +5,7 @@ Not a framework-against-baseline comparison, and not part of ``python -m benchma
     python -m benchmarks.timers [--timers 2000] [--runs 3]
 
 On each loop (the stdlib loop with the stock epoll selector, the stdlib loop
-``cas_async.loop_factory`` makes, with :mod:`cas_async._precise_selector`, and
+``cas_async.loop_factory`` makes, with :mod:`cas_async._time._precise_selector`, and
 uvloop when installed), one task arms ``--timers`` timers one after the other,
 each due 0.1 to 3 ms after the previous one went off (delays drawn from a fixed
 seed, the same on every loop), and records by how much each went off after its

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from cas_async import Layer, Robot, Transport
-from cas_async.scenario import _plots as plots
+from cas_async.scenario.output import _plots as plots
 from cas_async.testing import Robots
 from tests.stacks import STACK_MESSAGES
 

@@ -24,7 +24,7 @@ from typing import Any, Final
 import msgpack
 
 from cas_async import DecodeError, Message, MsgType
-from cas_async._message import field_names
+from cas_async._wire._message import message_fields
 from cas_async.transport import Codec
 from tests.stacks import Answer, Note, Query
 from tests.wire import tag_of
@@ -107,7 +107,7 @@ class HostileDatagrams:
         horizon: Callable[[], int] = lambda: 2**32,
     ) -> None:
         self._codec = codec
-        self._horizon = horizon  # the largest id the victim believes (see cas_async._dedup)
+        self._horizon = horizon  # the largest id the victim believes (see cas_async._core._dedup)
         self._rng = rng
         self.victim = victim
         self.attacker = attacker
@@ -181,7 +181,7 @@ class HostileDatagrams:
         return data
 
     def _fields(self, msg: Message) -> list[Any]:
-        return [getattr(msg, name) for name in field_names(type(msg))]
+        return [getattr(msg, name) for name in message_fields(type(msg))]
 
     def _follow(self, data: bytes) -> None:
         """Keeps the attacker's ids above any id a mutation made the victim accept."""

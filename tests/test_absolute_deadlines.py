@@ -10,7 +10,7 @@ import pytest
 
 import cas_async
 from cas_async import Clock, ScaledClock, VirtualClock, loop_factory, uvloop_available
-from cas_async._deliveries import DATAGRAM, Deliveries
+from cas_async._time._deliveries import DATAGRAM, Deliveries
 
 STEPS = 1000
 DT = 0.1  # not a binary fraction: rounding would show

@@ -467,7 +467,7 @@ def test_a_signal_while_drawing_leaves_whole_files_only(tmp_path: Path) -> None:
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 def test_in_process_a_signal_stops_the_run_and_main_returns_130(tmp_path: Path) -> None:
     # Not `python -m cas_async`: the robots are stopped one by one, nothing exits early.
-    from cas_async._cli import main
+    from cas_async._cli._main import main
 
     out = tmp_path / "out"
     stdout, stderr = io.StringIO(), io.StringIO()

@@ -65,7 +65,7 @@ def test_processes_without_the_zenoh_extra_say_how_to_install_it(tmp_path: Path)
     # The process sees no zenoh module, as where the extra is not installed.
     without_zenoh = (
         "import sys; sys.modules['zenoh'] = None; "
-        "from cas_async._cli import main; sys.exit(main(sys.argv[1:], owns_process=True))"
+        "from cas_async._cli._main import main; sys.exit(main(sys.argv[1:], owns_process=True))"
     )
     completed = subprocess.run(
         [

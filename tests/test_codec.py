@@ -19,7 +19,7 @@ from cas_async import (
     MsgType,
     StackMismatchError,
 )
-from cas_async._fingerprint import describe_fingerprint
+from cas_async._wire._fingerprint import describe_fingerprint
 from cas_async.transport import Codec
 from tests.wire import datagram, tag_of
 

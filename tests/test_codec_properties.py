@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cas_async import DecodeError, Finite, Message, MsgType, StackMismatchError, finite
-from cas_async._message import HEADER_FIELDS, field_names
+from cas_async._wire._message import HEADER_FIELDS, message_fields
 from cas_async.testing import strategy_for
 from cas_async.transport import Codec
 from tests.wire import tag_of
@@ -304,7 +304,7 @@ random_fields = st.one_of(
 def random_bodies(draw: st.DrawFn) -> bytes:
     """A known tag, random fields, and a header valid or (now and then) not."""
     cls = draw(st.sampled_from(ACCEPTED))
-    arity = len(field_names(cls))
+    arity = len(message_fields(cls))
     count = draw(st.sampled_from([arity, arity, arity, max(arity - 1, 0), arity + 1]))
     fields = [draw(random_fields) for _ in range(count)]
     header = list(HEADER)

@@ -6,7 +6,7 @@ import asyncio
 
 import cas_async
 from cas_async import Message, RequestTimeout, Robot, VirtualClock
-from cas_async._deadlines import Deadlines
+from cas_async._core._deadlines import Deadlines
 from cas_async.testing import wait_all_tasks_blocked
 from tests.stacks import STACK_MESSAGES, Query, Recorder
 

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cas_async import DecodeError, Message
-from cas_async._codec import MIN_DATAGRAM
+from cas_async._wire._codec import MIN_DATAGRAM
 from cas_async.transport import Codec
 from tests.wire import tag_of
 

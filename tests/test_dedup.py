@@ -18,7 +18,15 @@ from cas_async import (
     Swarm,
     VirtualClock,
 )
-from cas_async._dedup import DUPLICATE, FRESH, FUTURE, STALE, WINDOW, ReplyCache, SenderWindows
+from cas_async._core._dedup import (
+    DUPLICATE,
+    FRESH,
+    FUTURE,
+    STALE,
+    WINDOW,
+    ReplyCache,
+    SenderWindows,
+)
 from cas_async.transport import Codec
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder
 from tests.taps import Tap

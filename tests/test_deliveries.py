@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from cas_async import VirtualTimeLoop
-from cas_async._deliveries import DATAGRAM, ITEM, MOTION, RECEIPT, Deliveries
+from cas_async._time._deliveries import DATAGRAM, ITEM, MOTION, RECEIPT, Deliveries
 
 Log = list[tuple[float, object]]
 

@@ -32,8 +32,11 @@ DOCS: Final = ROOT / "docs"
 FACES: Final = {
     "cas_async": "api/cas_async",
     "cas_async.scenario": "api/scenario",
+    "cas_async.scenario.output": "api/scenario-output",
+    "cas_async.scenario.sweeps": "api/scenario-sweeps",
     "cas_async.sim": "api/sim",
     "cas_async.transport": "api/transport",
+    "cas_async.transport.zenoh": "api/transport-zenoh",
     "cas_async.testing": "api/testing",
     "cas_async.live": "api/live",
     "cas_async.ros": "api/ros",

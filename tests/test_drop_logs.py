@@ -7,7 +7,7 @@ import logging
 import pytest
 
 from cas_async import Message, message
-from cas_async._logs import MAX_DETAIL, DropLog, logger_for
+from cas_async._core._logs import MAX_DETAIL, DropLog, logger_for
 
 
 @message

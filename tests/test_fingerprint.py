@@ -13,7 +13,7 @@ import msgspec
 import pytest
 
 from cas_async import Message
-from cas_async._fingerprint import describe_fingerprint
+from cas_async._wire._fingerprint import describe_fingerprint
 from cas_async.transport import Codec
 
 

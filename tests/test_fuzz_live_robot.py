@@ -34,7 +34,7 @@ from cas_async import (
     UdpTransport,
     VirtualClock,
 )
-from cas_async._dedup import ID_SLACK
+from cas_async._core._dedup import ID_SLACK
 from cas_async.transport import Codec
 from tests.fuzz_datagrams import KINDS, HostileDatagrams, kinds_in_turn
 from tests.stacks import STACK_MESSAGES, Answer, Note, Query, Recorder

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 import threading
 from collections.abc import Iterator
 
 import pytest
 
-from cas_async._interrupts import Interrupted, Interrupts, _launched_as_cli
+from cas_async._cli._interrupts import Interrupted, Interrupts
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
@@ -76,20 +77,18 @@ def test_outside_the_main_thread_nothing_is_installed() -> None:
     assert seen == [before]
 
 
-@pytest.mark.parametrize(
-    ("argv0", "orig_argv", "expected"),
-    [
-        pytest.param("-m", ["python", "-m", "cas_async", "run", "x"], True, id="cli"),
-        pytest.param("-m", ["python", "-X", "dev", "-m", "cas_async"], True, id="options-first"),
-        pytest.param("-m", ["python", "-mcas_async"], True, id="joined"),
-        pytest.param("-m", ["python", "-m", "cas_async.tools"], False, id="a-submodule"),
-        pytest.param("-m", ["python", "-m", "pytest"], False, id="another-program"),
-        pytest.param("/x/pytest", ["python", "-m", "pytest"], False, id="already-running"),
-    ],
-)
-def test_the_early_handler_is_only_for_python_m_cas_async(
-    monkeypatch: pytest.MonkeyPatch, argv0: str, orig_argv: list[str], expected: bool
-) -> None:
-    monkeypatch.setattr(sys, "argv", [argv0])
-    monkeypatch.setattr(sys, "orig_argv", orig_argv)
-    assert _launched_as_cli() is expected
+def test_importing_the_library_leaves_the_signal_handlers_alone() -> None:
+    # Only `python -m cas_async` takes over the signals (in cas_async.__main__): a
+    # program or a test that imports the library keeps its own handlers.
+    script = (
+        "import signal\n"
+        "before = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]\n"
+        "import cas_async, cas_async.scenario, cas_async.sim, cas_async.transport\n"
+        "cas_async.Robot, cas_async.Layer\n"
+        "after = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]\n"
+        "print(before == after)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=True
+    )
+    assert done.stdout.strip() == "True", done.stderr

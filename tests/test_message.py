@@ -17,7 +17,7 @@ import msgspec
 import pytest
 
 from cas_async import Finite, Message, MessageDefinitionError, MsgType, message
-from cas_async._message import HEADER_FIELDS, MAX_TAG, all_messages, field_names, wire_name
+from cas_async._wire._message import HEADER_FIELDS, MAX_TAG, all_messages, message_fields, wire_name
 from cas_async.transport import Codec
 from tests.wire import tag_of
 
@@ -114,7 +114,7 @@ def test_a_module_run_with_python_m_names_its_classes_as_when_imported(tmp_path:
             """
             import json
             from cas_async import Message
-            from cas_async._message import wire_name
+            from cas_async._wire._message import wire_name
 
             class Ping(Message):
                 n: int
@@ -134,7 +134,8 @@ def test_a_module_run_with_python_m_names_its_classes_as_when_imported(tmp_path:
     )
     name, tag, refused = python("", "-m", "wirepkg.msgs", cwd=tmp_path)
     imported = python(
-        "import json; from wirepkg.msgs import Ping; from cas_async._message import wire_name\n"
+        "import json; from wirepkg.msgs import Ping\n"
+        "from cas_async._wire._message import wire_name\n"
         "print(json.dumps([wire_name(Ping), Ping.__struct_config__.tag]))",
         cwd=tmp_path,
     )
@@ -190,7 +191,7 @@ def test_renaming_makes_a_new_class_and_retires_the_old_one() -> None:
 
     after = message(name="msg-test.after")(MsgBefore)
     assert after is not MsgBefore
-    assert (after.__name__, field_names(after), wire_name(after)) == (
+    assert (after.__name__, message_fields(after), wire_name(after)) == (
         "MsgBefore",
         ("n",),
         "msg-test.after",
@@ -395,7 +396,7 @@ def test_wire_name_of_what_is_not_a_message_class_says_so() -> None:
 def test_the_header_is_keyword_only_and_comes_after_the_fields() -> None:
     assert MsgPing.__struct_fields__ == ("n", "note", *HEADER_FIELDS)
     assert MsgPingPlus.__struct_fields__ == ("n", "note", "extra", *HEADER_FIELDS)
-    assert field_names(MsgPingPlus) == ("n", "note", "extra")
+    assert message_fields(MsgPingPlus) == ("n", "note", "extra")
     assert MsgPing.__match_args__ == ("n", "note")
     ping = MsgPing(1, "x", msg_id=9, msg_type=MsgType.DENY, robot_id=4, corr_id=2)
     assert (ping.msg_id, ping.msg_type, ping.robot_id, ping.corr_id) == (9, MsgType.DENY, 4, 2)

@@ -18,8 +18,8 @@ from typing import Any
 import pytest
 
 from cas_async import ScaledClock, loop_factory
-from cas_async import _precise_selector as precise
-from cas_async._precise_selector import PreciseEpollSelector
+from cas_async._time import _precise_selector as precise
+from cas_async._time._precise_selector import PreciseEpollSelector
 
 pytestmark = pytest.mark.skipif(
     not precise.precise_selector_available(), reason="epoll only (Linux)"

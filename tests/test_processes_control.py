@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 
 from cas_async import SwarmKey
-from cas_async.scenario._control import WORLD, Beat, Channel, Control, Ready
-from cas_async.transport._zenoh_config import loopback_config
+from cas_async.scenario._processes._control import WORLD, Beat, Channel, Control, Ready
+from cas_async.transport.zenoh._sessions import loopback_config
 from tests.processes_support import free_endpoint
 
 zenoh = pytest.importorskip("zenoh")

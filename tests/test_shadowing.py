@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from cas_async._shadow import explain, shadowed
+from cas_async._cli._shadow import explain, shadowed
 
 LIMIT = 120
 

@@ -19,7 +19,7 @@ from cas_async import (
     UdpDirectory,
     UdpTransport,
 )
-from cas_async.transport._udp_socket import BATCH, GROW_AFTER, MAX_BACKLOG, SocketWire
+from cas_async.transport._batched_socket import BATCH, GROW_AFTER, MAX_BACKLOG, SocketWire
 from tests.stacks import STACK_MESSAGES, Note, Recorder, recorders
 from tests.taps import Tap
 

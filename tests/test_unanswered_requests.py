@@ -25,7 +25,7 @@ from cas_async import (
     VirtualClock,
     message,
 )
-from cas_async._requests import OVERDUE
+from cas_async._core._requests import OVERDUE
 from cas_async.testing import Robots
 
 

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from cas_async import VirtualTimeLoop
-from cas_async._virtual_loop import POLL_EVERY
+from cas_async._time._virtual_loop import POLL_EVERY
 
 
 class CountingSelector(selectors.DefaultSelector):

@@ -1,7 +1,7 @@
 """The keys of robots that talk are declared to Zenoh, within a budget, and undeclared in time.
 
 Real sessions on loopback. A publisher per pair to send, a key expression per pair to
-receive (``cas_async.transport._zenoh_keys`` says what each saves); what is declared
+receive (``cas_async.transport.zenoh._keys`` says what each saves); what is declared
 stays bounded whatever strangers publish, goes when a robot of the pair goes, and a
 pair beyond the budget still gets every datagram through.
 """
@@ -14,8 +14,8 @@ from typing import Any
 import pytest
 
 from cas_async import ZenohTransport
-from cas_async.transport._zenoh_config import loopback_config
-from cas_async.transport._zenoh_keys import KNOWN_KEYS, Publishers, ReceivedKeys
+from cas_async.transport.zenoh._keys import KNOWN_KEYS, Publishers, ReceivedKeys
+from cas_async.transport.zenoh._sessions import loopback_config
 from tests.stacks import Note, Recorder, recorders
 from tests.zenoh_support import (
     Sink,

@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 
 from cas_async import SwarmKey
-from cas_async.transport._presence import PresenceSeal
-from cas_async.transport._zenoh_members import MAX_CLAIMS, Members
+from cas_async._wire._presence import PresenceSeal
+from cas_async.transport.zenoh._members import MAX_CLAIMS, Members
 
 KEY = SwarmKey(bytes(range(32)))
 OTHER_KEY = SwarmKey(b"\xa5" * 32)

@@ -35,7 +35,7 @@ from cas_async import (
     VirtualClock,
     ZenohTransport,
 )
-from cas_async.transport._zenoh import loopback_config
+from cas_async.transport.zenoh._transport import loopback_config
 from tests.stacks import Answer, Note, Query, Recorder, recorders
 from tests.zenoh_support import (
     Sink,

@@ -2,7 +2,7 @@
 
 A datagram is the stack's fingerprint (4 bytes, big-endian), then one msgpack
 array: the message's tag, its fields, then the header (``msg_type, msg_id,
-robot_id, src_layer, dst_layer, corr_id``). See ``cas_async._codec``.
+robot_id, src_layer, dst_layer, corr_id``). See ``cas_async._wire._codec``.
 """
 
 from __future__ import annotations

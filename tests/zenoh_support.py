@@ -21,7 +21,7 @@ import pytest
 
 from cas_async import Layer, Robot, RobotId, Transport, ZenohTransport
 from cas_async.transport import Codec
-from cas_async.transport._zenoh import loopback_config
+from cas_async.transport.zenoh._transport import loopback_config
 from tests.stacks import STACK_MESSAGES, Note, Recorder
 
 zenoh = pytest.importorskip("zenoh")

@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
-from cas_async.scenario import Trace
+from cas_async.scenario.output import Trace
 
 from .floor import Floor
 

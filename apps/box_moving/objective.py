@@ -14,7 +14,8 @@ from __future__ import annotations
 from collections.abc import Collection
 from pathlib import Path
 
-from cas_async.scenario import Objective, RunResult, Tally, Trace, Watch
+from cas_async.scenario import Objective, RunResult, Tally, Watch
+from cas_async.scenario.output import Trace
 
 from .floor import Floor
 from .records import FloorEvent, FloorEventKind

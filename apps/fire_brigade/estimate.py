@@ -4,7 +4,7 @@ A robot holding a bucket ranks its candidate partners by how soon the bucket
 would reach the sink: the time for the two to meet, plus the time the partner
 then needs to carry the bucket to the sink alone. The thesis solves one
 quadratic per case (equations 2-4) and patches in the minimum-speed mode
-(equation 5); here every case goes through :func:`cas_async.closing_time`,
+(equation 5); here every case goes through :func:`cas_async.sim.closing_time`,
 which already splits the motion at each profile's phase boundaries.
 
 A profile of ``None`` stands for an immobile robot: a generator when it gives,
@@ -52,7 +52,7 @@ def meeting_time(gap: float, giver: SpeedProfile | None, receiver: SpeedProfile 
     immobile robot (``None``) only the other moves, which is equation 4. If a
     decelerating robot reaches its minimum speed before the meeting, the time
     until then (equation 5) plus the remaining gap at the summed speeds is what
-    :func:`~cas_async.closing_time` returns.
+    :func:`~cas_async.sim.closing_time` returns.
 
     Args:
         gap: distance between the two robots, ``>= 0``.

@@ -1,4 +1,4 @@
-"""Watching a swarm: a live view in the browser, a replay of any run, and MCAP recordings.
+"""Watching a swarm: live in the browser, a replay of any run, MCAP recordings.
 
 * :class:`LiveView`: serves a running :class:`~cas_async.scenario.ScenarioRun`'s
   view on one port of the caller's event loop (what ``run --live`` does): a

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from ..scenario import Disc, Polyline, Rect, Scene
-from ..scenario._atomic_files import atomic_binary_file
+from ..scenario.output import atomic_binary_file
 from ._protocol import OTHER, colors_for
 from ._recording import Recording
 from ._ros2 import DEFINITIONS

@@ -15,7 +15,7 @@ a sample of the run's own sampler (the rows of ``trace.csv``), sent at most
 ``fps`` times per wall second; the samples in between are skipped, and a viewer
 that reads slowly only ever gets the latest frame (see :mod:`._server`). With
 ``pace``, a run on virtual time is held to that many simulated seconds per wall
-second (see :class:`~cas_async.live._wall.Pacer`): the results do not change.
+second (see :class:`~cas_async.live._pacer.Pacer`): the results do not change.
 """
 
 from __future__ import annotations
@@ -31,15 +31,14 @@ from typing import Any, Final, final
 import numpy as np
 import numpy.typing as npt
 
-from .._errors import ConfigurationError
-from .._virtual_loop import VirtualTimeLoop
+from .. import ConfigurationError, VirtualTimeLoop
 from ..scenario import ScenarioRun
-from ..sim._item_events import ItemEvent, ItemEventKind
+from ..sim import ItemEvent, ItemEventKind
 from ..transport import InsecureBindWarning
+from ._pacer import Pacer, wall_bounded
 from ._protocol import encode_frame, hello, text
 from ._server import ViewServer, is_loopback
 from ._viewer import Viewer
-from ._wall import Pacer, wall_bounded
 
 __all__ = ["LiveView"]
 

@@ -23,9 +23,9 @@ from typing import Any, Final, final
 import numpy as np
 import numpy.typing as npt
 
-from .._errors import CasError
+from .. import CasError
 from ..scenario import ScenarioRun, Scene
-from ..scenario._atomic_files import atomic_text_file
+from ..scenario.output import atomic_text_file
 from ._protocol import UNKNOWN
 
 __all__ = ["Recording", "RecordingError", "Sample", "write_scene"]

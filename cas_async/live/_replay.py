@@ -15,7 +15,7 @@ import warnings
 from pathlib import Path
 from typing import Any, final
 
-from .._errors import ConfigurationError
+from .. import ConfigurationError
 from ..transport import InsecureBindWarning
 from ._protocol import encode_frame, hello, text
 from ._recording import Recording, RecordingError

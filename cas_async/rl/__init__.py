@@ -1,4 +1,4 @@
-"""Learning a layer: a scenario as a PettingZoo multi-agent environment on virtual time.
+"""Learning a layer: a scenario as a PettingZoo environment on virtual time.
 
 Needs the ``rl`` extra (``pip install "cas_async[rl]"``: pettingzoo and gymnasium).
 

@@ -26,11 +26,8 @@ import numpy.typing as npt
 from gymnasium.spaces import Space
 from pettingzoo import ParallelEnv
 
-from .._errors import ConfigurationError
-from .._types import RobotId
-from ..scenario._loader import Scenario
-from ..scenario._results import RunResult, RunStatus
-from ..scenario._runner import ScenarioRun
+from .. import ConfigurationError, RobotId
+from ..scenario import RunResult, RunStatus, Scenario, ScenarioRun
 from ._episode import Episode, StepOutcome
 from ._policy import Act, PolicyLayer, Seat, bind
 from ._recipe import Recipe, agent_name

@@ -19,14 +19,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import final
 
-from .._errors import CasError, ConfigurationError, RobotStateError
-from .._types import RobotId
-from ..scenario._loader import Scenario
-from ..scenario._results import RunResult, RunStatus
-from ..scenario._runner import ScenarioRun
-from ..sim._environment import Environment
-from ._loop import SteppingLoop, off_running_loop
+from .. import CasError, ConfigurationError, RobotId, RobotStateError
+from ..scenario import RunResult, RunStatus, Scenario, ScenarioRun
+from ..sim import Environment
 from ._policy import ACTION_TIMER, PolicyLayer, acts_every_step
+from ._stepping_loop import SteppingLoop, off_running_loop
 
 __all__ = ["Episode", "EpisodeFailed", "StepOutcome"]
 

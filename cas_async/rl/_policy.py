@@ -19,8 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable
 from typing import Any, Final, final
 
-from .._errors import ConfigurationError
-from .._layer import Layer
+from .. import ConfigurationError, Layer
 
 __all__ = ["ACTION_TIMER", "Act", "PolicyLayer", "Seat", "acts_every_step", "bind"]
 

@@ -12,15 +12,8 @@ import os
 from collections.abc import Sequence
 from typing import Any, final
 
-from .._errors import ConfigurationError
-from .._types import RobotId
-from ..scenario._loader import (
-    Scenario,
-    apply_overrides,
-    load_scenario,
-    parse_override,
-    scenario_from_data,
-)
+from .. import ConfigurationError, RobotId
+from ..scenario import Scenario, apply_overrides, load_scenario, parse_override, scenario_from_data
 from ._episode import Episode
 from ._policy import PolicyLayer
 

@@ -14,8 +14,8 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from ..scenario._trace import Trace
-from ..sim._environment import Environment
+from ..scenario.output import Trace
+from ..sim import Environment
 
 __all__ = ["draw"]
 

@@ -21,12 +21,12 @@ against what.
 from ._controller import DiffDriveController, DriveTuning
 from ._diff_drive import RosDiffDrive
 from ._endpoints import RosPublisher, RosSubscription
-from ._errors import RosTimeout, RosTypeMismatchWarning
+from ._exceptions import RosTimeout, RosTypeMismatchWarning
 from ._fake_robot import FakeRobot
 from ._graph import GraphEntity, parse_token
 from ._link import RosLink, TypeMismatch
+from ._message_types import DISTRO, DISTROS, RosType, TypeCatalog
 from ._qos import Durability, History, Liveliness, QoS, Reliability
-from ._types import DISTRO, DISTROS, RosType, TypeCatalog
 
 __all__ = [
     "DISTRO",

@@ -1,8 +1,8 @@
-"""``python -m cas_async.ros``: see :mod:`cas_async.ros._cli`."""
+"""``python -m cas_async.ros``: see :mod:`cas_async.ros._command`."""
 
 import sys
 
-from ._cli import main
+from ._command import main
 
 __all__: list[str] = []
 

@@ -22,8 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .._errors import ConfigurationError
-from .._pose import Pose, normalize_angle
+from .. import ConfigurationError, Pose, normalize_angle
 
 __all__ = ["DiffDriveController", "DriveTuning"]
 

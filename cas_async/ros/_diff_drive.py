@@ -27,16 +27,19 @@ from typing import Any, Final, final
 
 import numpy as np
 
-from .._clock import Clock
-from .._errors import ConfigurationError, RobotStateError
-from .._middleware import Middleware
-from .._pose import Pose
-from .._positions import Positions
-from .._profiles import SpeedProfile
-from .._types import RobotId
+from .. import (
+    Clock,
+    ConfigurationError,
+    Middleware,
+    Pose,
+    Positions,
+    RobotId,
+    RobotStateError,
+    SpeedProfile,
+)
 from ._controller import DiffDriveController, DriveTuning
 from ._endpoints import RosPublisher, RosSubscription
-from ._errors import RosTimeout
+from ._exceptions import RosTimeout
 from ._graph import GraphEntity, Kind
 from ._link import RosLink
 

@@ -3,7 +3,7 @@
 A :class:`RosPublisher` encodes plain values to CDR and puts them under the topic's
 key with rmw_zenoh's attachment (its own sequence number from 1, the time, its GID).
 A :class:`RosSubscription` is an async iterator of decoded messages: Zenoh's thread
-hands each sample to the link's :class:`~cas_async.transport._thread_inbox.ThreadInbox`,
+hands each sample to the link's :class:`~cas_async.transport.zenoh._thread_inbox.ThreadInbox`,
 and the loop decodes it here. Like an rmw_zenoh subscription it keeps the last
 ``depth`` messages (``KEEP_LAST``): a reader that falls behind loses the oldest,
 counted as ``overflow``. A sample with no or a malformed attachment (rmw_zenoh drops
@@ -20,12 +20,12 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from .._errors import RobotStateError
+from .. import RobotStateError
 from ._attachment import Attachment
 from ._graph import GraphEntity, entity_gid
 
 if TYPE_CHECKING:
-    from ._types import RosType
+    from ._message_types import RosType
 
 __all__ = ["RosPublisher", "RosSubscription"]
 

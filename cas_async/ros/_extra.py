@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Final
 
-from .._errors import ConfigurationError
+from .. import ConfigurationError
 
 __all__ = ["INSTALL", "import_rosbags_typesys", "import_zenoh"]
 

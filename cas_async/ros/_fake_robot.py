@@ -27,15 +27,13 @@ import math
 from collections.abc import Callable
 from typing import Any, Final
 
-from .._clock import ScaledClock
-from .._errors import ConfigurationError
-from .._pose import Pose
-from ..transport._zenoh import loopback_config
+from .. import ConfigurationError, Pose, ScaledClock
+from ..transport.zenoh import loopback_config
 from ._endpoints import RosSubscription
 from ._extra import import_zenoh
 from ._graph import GraphEntity
 from ._link import RosLink
-from ._types import DISTRO
+from ._message_types import DISTRO
 
 __all__ = ["FakeRobot"]
 

@@ -7,7 +7,7 @@ in ``ros2 node list``), one token per publisher and subscription (``ros2 topic
 info``), and follows everyone's tokens under ``@ros2_lv/<domain>/**`` to know the
 graph (:meth:`RosLink.graph`, :meth:`RosLink.wait_for`). Samples and tokens arrive on
 Zenoh's threads and reach the loop in batches through one
-:class:`~cas_async.transport._thread_inbox.ThreadInbox`, as in ``ZenohTransport``.
+:class:`~cas_async.transport.zenoh._thread_inbox.ThreadInbox`, as in ``ZenohTransport``.
 
 A peer whose token shows one of our topics with another type or type hash can
 never hear us nor we it (the keys differ): the link warns
@@ -27,16 +27,15 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Final, Literal
 
-from .._errors import ConfigurationError, RobotStateError
-from ..transport._thread_inbox import ThreadInbox
-from ..transport._zenoh import loopback_config
+from .. import ConfigurationError, RobotStateError
+from ..transport.zenoh import ThreadInbox, loopback_config
 from ._endpoints import RosPublisher, RosSubscription
-from ._errors import RosTimeout, RosTypeMismatchWarning
+from ._exceptions import RosTimeout, RosTypeMismatchWarning
 from ._extra import import_zenoh
 from ._graph import ADMIN_SPACE, GraphEntity, Kind, parse_token
+from ._message_types import DISTRO, TypeCatalog
 from ._names import data_key, resolve_topic, validate_namespace, validate_node_name
 from ._qos import History, QoS, Reliability
-from ._types import DISTRO, TypeCatalog
 
 __all__ = ["RosLink", "TypeMismatch"]
 

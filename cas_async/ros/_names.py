@@ -15,7 +15,7 @@ from __future__ import annotations
 import re
 from typing import Final
 
-from .._errors import ConfigurationError
+from .. import ConfigurationError
 
 __all__ = [
     "data_key",

@@ -1,34 +1,39 @@
-"""Scenario files and runs: ``python -m cas_async run scenario.toml``, and the pieces behind it.
+"""Scenario files and runs: the application contract, the file, running one.
 
-* :mod:`.config`: TOML tables to frozen dataclasses, with errors naming file and key;
-  ``setting()`` declares a key's default, bounds and doc.
-* :mod:`.loader`: a scenario file end to end (``app``, ``[run]``, ``[world]``, the app's
-  sections, ``--set`` overrides).
-* :mod:`.app`: the contract an application implements (:class:`SimulationApp`), and
-  the levels of its stack a scenario may replace (:class:`LayerSlot`).
-* :mod:`.objective`: what a mission is for (:class:`Objective`): its end, progress,
-  checks and results; :class:`Items` retires items of the Environment's ledger.
-* :mod:`.runner`: one run as a coroutine, or step by step (:class:`ScenarioRun`:
-  ``now()`` and ``progress()`` say where it stands); :mod:`.background`: a run on
-  a loop of its own in a worker thread, for an asyncio service (:class:`BackgroundRun`);
-  :mod:`.results`: what it measured; :mod:`.drop_policy`: drops that fail a run
-  (:class:`FailOnDrops`); :mod:`.listener`: what a run tells a :class:`RunListener`
-  as it goes (the live view is one).
-* :mod:`.scene`: the static scene an application declares for the views
-  (:class:`Scene` of :class:`Disc`, :class:`Rect`, :class:`Polyline`, :class:`Spot`).
-* :mod:`.trace`, :mod:`.report`, :mod:`.plots`, :mod:`.progress`: positions over time,
-  the summary table and results.json, PNG figures, the live progress line.
-* :mod:`.sweep`: a scenario over a grid of values and seeds in worker processes
-  (:func:`sweep`; step by step :func:`plan_sweep`, :func:`run_sweep`), summarised
-  per point and metric (:class:`SweepOutcome`, :func:`sweep_table`).
+The application contract:
+
+* :class:`SimulationApp` builds a :class:`Mission` from a :class:`SimulationSetup`
+  (with its :class:`Measure`); :class:`LayerSlot` names the levels of its stack a
+  scenario may replace; :class:`Objective` (:class:`Items`, :class:`Tally`,
+  :class:`Watch`) says what the mission is for; :class:`Scene` (of :class:`Disc`,
+  :class:`Rect`, :class:`Polyline`, :class:`Spot`) what the views draw;
+* :func:`setting` declares a key of an app's own section, :func:`from_toml` reads
+  one, :class:`ScenarioError` says what is wrong and where.
+
+The scenario file: :func:`load_scenario` (or :func:`scenario_from_data` for a table
+already read) gives a :class:`Scenario` of :class:`RunConfig`, :class:`WorldConfig`,
+:class:`NetworkConfig` and :class:`FaultsConfig`; :func:`parse_override` and
+:func:`apply_overrides` are ``--set``; :func:`check_key` checks a swarm key against it.
+
+Running one: :func:`run_scenario` (all at once), :class:`ScenarioRun` (step by
+step), :class:`BackgroundRun` (beside an asyncio service); each gives a
+:class:`RunResult` (:class:`RunStatus`, :class:`RunProgress`); a
+:class:`RunListener` follows a run; :class:`FailOnDrops` fails one on drops.
+
+Beside this face: :mod:`cas_async.scenario.output` (results, traces, reports,
+figures) and :mod:`cas_async.scenario.sweeps` (a scenario over a grid of values).
 """
 
-from ._app import LayerSlot, Measure, Mission, SimulationApp, SimulationSetup
-from ._background import BackgroundRun
-from ._config import ScenarioError, from_toml, setting
-from ._drop_policy import FailOnDrops
-from ._listener import RunListener
-from ._loader import (
+from .._deprecation import Heir as _Heir
+from .._deprecation import moved_names as _moved_names
+from ._run._background import BackgroundRun
+from ._run._drop_policy import FailOnDrops
+from ._run._listener import RunListener
+from ._run._run_scenario import run_scenario
+from ._run._runner import ScenarioRun
+from ._spec._app import LayerSlot, Measure, Mission, SimulationApp, SimulationSetup
+from ._spec._config import ScenarioError, from_toml, setting
+from ._spec._loader import (
     DEFAULT_LATENCY,
     FaultsConfig,
     NetworkConfig,
@@ -38,21 +43,12 @@ from ._loader import (
     apply_overrides,
     load_scenario,
     parse_override,
+    scenario_from_data,
 )
-from ._objective import Items, Objective, Tally, Watch
-from ._plots import write_plots
-from ._progress import Progress
-from ._report import results_dict, statistics, summary_table, write_results
-from ._results import RunProgress, RunResult, RunStatus
-from ._run_scenario import run_scenario
-from ._run_transport import check_key
-from ._runner import ScenarioRun
-from ._scene import Disc, Polyline, Rect, Scene, Shape, Spot
-from ._sweep import run_sweep, sweep
-from ._sweep_grid import SweepAxis, SweepPlan, parse_vary, plan_sweep
-from ._sweep_report import sweep_table
-from ._sweep_results import MetricStats, SweepOutcome, SweepRun
-from ._trace import Trace, TraceCsv
+from ._spec._objective import Items, Objective, Tally, Watch
+from ._spec._run_transport import check_key
+from ._spec._scene import Disc, Polyline, Rect, Scene, Shape, Spot
+from .output import RunProgress, RunResult, RunStatus
 
 __all__ = [
     "BackgroundRun",
@@ -63,12 +59,10 @@ __all__ = [
     "Items",
     "LayerSlot",
     "Measure",
-    "MetricStats",
     "Mission",
     "NetworkConfig",
     "Objective",
     "Polyline",
-    "Progress",
     "Rect",
     "RunConfig",
     "RunListener",
@@ -83,13 +77,7 @@ __all__ = [
     "SimulationApp",
     "SimulationSetup",
     "Spot",
-    "SweepAxis",
-    "SweepOutcome",
-    "SweepPlan",
-    "SweepRun",
     "Tally",
-    "Trace",
-    "TraceCsv",
     "Watch",
     "WorldConfig",
     "apply_overrides",
@@ -97,16 +85,35 @@ __all__ = [
     "from_toml",
     "load_scenario",
     "parse_override",
-    "parse_vary",
-    "plan_sweep",
-    "results_dict",
     "run_scenario",
-    "run_sweep",
+    "scenario_from_data",
     "setting",
-    "statistics",
-    "summary_table",
-    "sweep",
-    "sweep_table",
-    "write_plots",
-    "write_results",
 ]
+
+_OUTPUT = "cas_async.scenario.output"
+_SWEEP = "cas_async.scenario.sweeps"
+
+_deprecated = _moved_names(
+    __name__,
+    {
+        **{
+            name: _Heir(_OUTPUT)
+            for name in (
+                "Progress", "Trace", "TraceCsv", "results_dict", "statistics",
+                "summary_table", "write_plots", "write_results",
+            )
+        },
+        **{
+            name: _Heir(_SWEEP)
+            for name in (
+                "MetricStats", "SweepAxis", "SweepOutcome", "SweepPlan", "SweepRun",
+                "parse_vary", "plan_sweep", "run_sweep", "sweep", "sweep_table",
+            )
+        },
+    },
+)  # fmt: skip
+"""Names this face gave in 0.1.0 that moved to its stages' faces (``CHANGELOG.md``)."""
+
+
+def __getattr__(name: str) -> object:
+    return _deprecated(name)  # a name that moved gives its heir, with a warning

@@ -16,14 +16,14 @@ with hardware (poses, positions, speed profiles, the middleware interface) is
 in the core, ``cas_async``.
 """
 
-from .._phases import Phase, check_phases
-from .._pose import normalize_angle
-from .._profiles import closing_time
+from .._body._phases import Phase, check_phases
+from .._body._pose import normalize_angle
+from .._body._profiles import closing_time
 from ._environment import Environment
 from ._item_events import ItemEvent, ItemEventKind
 from ._items import ItemLedger
 from ._kinematics import Motion, check_turn_rate
-from ._middleware import SimulatedHands, SimulatedMiddleware
+from ._simulated import SimulatedHands, SimulatedMiddleware
 
 __all__ = [
     "Environment",

@@ -15,7 +15,7 @@ items robots carry: hand-overs happen only between robots within reach
 of each other, and a robot holding items cannot leave.
 
 Application layers never touch it: a robotic layer reaches it through a
-:class:`~cas_async.sim._middleware.SimulatedMiddleware`.
+:class:`~cas_async.sim._simulated.SimulatedMiddleware`.
 
 With a ``latency`` (the simulation's network model: the least simulated time any
 effect needs to go from one robot to another), a robot's motion is *seen* by the
@@ -23,7 +23,7 @@ others only ``latency`` after it started: range queries (:meth:`within`) place t
 asker where it really is and every other robot where its last motion seen says it
 is, the motion it was on ``latency`` ago carried on to now (dead reckoning, as a
 robot does with a neighbour's last broadcast). The motions seen change at their
-instants in a fixed order (see :mod:`cas_async._deliveries`), so what a robot
+instants in a fixed order (see :mod:`cas_async._time._deliveries`), so what a robot
 senses does not depend on which robots share its process. Item hand-overs take
 the latency too (see :meth:`hand_over`).
 """
@@ -38,11 +38,11 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from .._clock import Clock
-from .._deliveries import MOTION
+from .._body._pose import Pose
+from .._body._positions import Positions
 from .._errors import ConfigurationError, SimulationError, UnknownRobotError
-from .._pose import Pose
-from .._positions import Positions
+from .._time._clock import Clock
+from .._time._deliveries import MOTION
 from .._types import RobotId
 from ._entries import Courier, RobotEntry, check_instant
 from ._grid import CellGrid, nearest_first

@@ -18,7 +18,7 @@ from typing import Final, final
 import numpy as np
 import numpy.typing as npt
 
-from .._positions import Positions
+from .._body._positions import Positions
 
 __all__ = ["CellGrid", "nearest_first"]
 

@@ -16,10 +16,10 @@ import asyncio
 import math
 from collections.abc import Callable
 
-from .._clock import Clock
-from .._deliveries import ITEM, RECEIPT, Deliveries
+from .._body._pose import Pose
 from .._errors import SimulationError
-from .._pose import Pose
+from .._time._clock import Clock
+from .._time._deliveries import ITEM, RECEIPT, Deliveries
 from .._types import ItemId, RobotId
 from ._entries import Courier, RobotEntry
 from ._items import ItemLedger

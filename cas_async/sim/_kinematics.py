@@ -20,10 +20,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final
 
+from .._body._phases import Phase, check_phases
+from .._body._pose import Pose, normalize_angle
+from .._body._profiles import PiecewiseSpeed, SpeedProfile
 from .._errors import SimulationError
-from .._phases import Phase, check_phases
-from .._pose import Pose, normalize_angle
-from .._profiles import PiecewiseSpeed, SpeedProfile
 
 __all__ = ["Motion", "check_turn_rate"]
 

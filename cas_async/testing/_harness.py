@@ -5,12 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Collection, Iterable, Sequence
 from typing import Any, final
 
-from .._clock import Clock
-from .._errors import LayerError
-from .._layer import Layer
-from .._message import Message
-from .._robot import Robot
-from ..transport._memory import MemoryTransport
+from .. import Clock, Layer, LayerError, MemoryTransport, Message, Robot
 from ._recorder import Recorder
 from ._robots import Robots, UnexpectedDrops, default_clock
 from ._waiting import wait_all_tasks_blocked

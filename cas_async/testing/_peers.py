@@ -7,7 +7,7 @@ import contextlib
 from collections.abc import AsyncIterator, Mapping
 from contextlib import asynccontextmanager
 
-from .._virtual_loop import VirtualTimeLoop
+from .. import VirtualTimeLoop
 
 __all__ = ["peer_process"]
 

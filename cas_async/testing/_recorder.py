@@ -5,8 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TypeVar
 
-from .._layer import Layer
-from .._message import Message
+from .. import Layer, Message
 
 __all__ = ["Recorder"]
 

@@ -8,13 +8,7 @@ from collections.abc import Collection, Iterable, Sequence
 from contextlib import AsyncExitStack
 from typing import Any, final
 
-from .._clock import Clock, VirtualClock
-from .._layer import Layer
-from .._message import Message
-from .._robot import Robot
-from .._swarm import Swarm
-from .._virtual_loop import VirtualTimeLoop
-from ..transport._base import Transport
+from .. import Clock, Layer, Message, Robot, Swarm, Transport, VirtualClock, VirtualTimeLoop
 
 __all__ = ["Robots", "UnexpectedDrops", "default_clock"]
 

@@ -9,8 +9,8 @@ from typing import Final, TypeVar
 import msgspec
 import numpy as np
 
-from .._codec import Codec
-from .._message import Message, field_names
+from .. import Message, message_fields
+from ..transport import Codec
 
 __all__ = ["assert_roundtrip"]
 
@@ -50,7 +50,7 @@ def assert_roundtrip(
         raise AssertionError(f"{msg!r} came back as another class: {copy!r}")
     differ = [
         f"{name}: {getattr(msg, name)!r} became {getattr(copy, name)!r}"
-        for name in (*field_names(type(msg)), *_HEADER)
+        for name in (*message_fields(type(msg)), *_HEADER)
         if not _same(getattr(msg, name), getattr(copy, name))
     ]
     if differ:
@@ -68,7 +68,7 @@ def _same(a: object, b: object) -> bool:
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     if isinstance(a, msgspec.Struct) and type(a) is type(b):
-        names = field_names(type(a)) if isinstance(a, Message) else type(a).__struct_fields__
+        names = message_fields(type(a)) if isinstance(a, Message) else type(a).__struct_fields__
         return all(_same(getattr(a, name), getattr(b, name)) for name in names)
     if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
         floating = a.dtype.kind in "fc"

@@ -8,8 +8,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from .._runner import run as run_loop
-from ..scenario import RunResult, ScenarioRun, Trace, load_scenario
+from .. import run as run_loop
+from ..scenario import RunResult, ScenarioRun, load_scenario
+from ..scenario.output import Trace
 from ..sim import Environment
 
 __all__ = ["ScenarioOutcome", "run_scenario_file"]

@@ -8,7 +8,7 @@ from typing import Any
 import msgspec.inspect as mi
 import numpy as np
 
-from .._message import Message, field_names
+from .. import Message, message_fields
 
 if typing.TYPE_CHECKING:
     from hypothesis.strategies import SearchStrategy
@@ -41,7 +41,7 @@ def strategy_for(cls: type[Message]) -> SearchStrategy[Any]:
     _require_hypothesis()
     if not (isinstance(cls, type) and issubclass(cls, Message)) or cls is Message:
         raise TypeError(f"strategy_for needs a message class (a Message subclass), got {cls!r}")
-    return _struct(typing.cast(mi.StructType, mi.type_info(cls)), field_names(cls))
+    return _struct(typing.cast(mi.StructType, mi.type_info(cls)), message_fields(cls))
 
 
 def _require_hypothesis() -> None:
@@ -98,7 +98,7 @@ def _strategy(node: mi.Type) -> SearchStrategy[Any]:
         case mi.DictType(key_type=keys, value_type=values):
             return st.dictionaries(_strategy(keys), _strategy(values), max_size=_MAX_ITEMS)
         case mi.StructType(cls=kind):
-            names = field_names(kind) if issubclass(kind, Message) else None
+            names = message_fields(kind) if issubclass(kind, Message) else None
             return st.deferred(lambda: _struct(node, names))
         case mi.CustomType(cls=kind) if issubclass(kind, np.ndarray):
             return _arrays()

@@ -7,8 +7,7 @@ import weakref
 from collections.abc import Callable
 from typing import Final
 
-from .._clock import Clock
-from .._virtual_loop import VirtualTimeLoop
+from .. import Clock, VirtualTimeLoop
 
 __all__ = ["RunUntilTimeout", "run_until", "wait_all_tasks_blocked"]
 

@@ -11,16 +11,22 @@ The transports that ship (also exported by ``cas_async``): :class:`MemoryTranspo
 wrappers :class:`FaultyTransport` and :class:`AuthenticatedTransport`.
 """
 
-from .._codec import DEFAULT_MAX_DATAGRAM, Codec
-from .._fingerprint import describe_fingerprint, stack_fingerprint
-from .._swarm_key import KeyFileWarning, SwarmKey
-from .._wire_codec import PassThrough, WireCodec
+from .._core._transport_contract import (
+    DatagramSink,
+    Endpoint,
+    LossCounter,
+    Transport,
+    drop_socket_error,
+)
+from .._wire._codec import DEFAULT_MAX_DATAGRAM, Codec
+from .._wire._fingerprint import describe_fingerprint, stack_fingerprint
+from .._wire._payloads import PassThrough, WireCodec
+from .._wire._swarm_key import KeyFileWarning, SwarmKey
 from ._authenticated import AuthenticatedTransport
-from ._base import DatagramSink, Endpoint, LossCounter, Transport, drop_socket_error
 from ._faulty import Faults, FaultyTransport
 from ._memory import MemoryTransport
 from ._udp import MAX_UDP_PAYLOAD, InsecureBindWarning, UdpDirectory, UdpTransport
-from ._zenoh import ZenohTransport
+from .zenoh import ZenohTransport
 
 __all__ = [
     "AuthenticatedTransport",

@@ -1,6 +1,6 @@
 """Authenticates every datagram of a transport with a key the swarm shares (HMAC-SHA256).
 
-Turning it on: give every robot of the swarm the same :class:`~cas_async._swarm_key.SwarmKey`,
+Turning it on: give every robot of the swarm the same :class:`~cas_async._wire._swarm_key.SwarmKey`,
 from the environment (``CAS_ASYNC_SWARM_KEY``, hex) or from a key file, never from the
 scenario file, and wrap the transport::
 
@@ -50,16 +50,17 @@ import hmac
 import struct
 import time
 from collections import Counter, OrderedDict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from typing import Final, final
 
-from .._codec import MIN_DATAGRAM
-from .._dedup import DUPLICATE, STALE, WINDOW, slide
+from .._core._dedup import DUPLICATE, STALE, WINDOW, slide
+from .._core._transport_contract import DatagramSink, Endpoint, Transport
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
-from .._swarm_key import SwarmKey
-from .._types import Address, RobotId
-from ._base import DatagramSink, Endpoint, Transport
-from ._presence import PresenceSeal
+from .._types import RobotId
+from .._wire._codec import MIN_DATAGRAM
+from .._wire._presence import PresenceSeal
+from .._wire._swarm_key import SwarmKey
+from ._wrapping import WrappingEndpoint
 
 __all__ = ["AuthenticatedTransport"]
 
@@ -87,8 +88,8 @@ class AuthenticatedTransport(Transport):
 
     Args:
         inner: the transport that moves the signed datagrams; marked ``authenticated``,
-            and handed a :class:`~cas_async.transport._presence.PresenceSeal` (its
-            :meth:`~cas_async.transport._base.Transport.require_proof`): where it learns
+            and handed a :class:`~cas_async._wire._presence.PresenceSeal` (its
+            :meth:`~cas_async._core._transport_contract.Transport.require_proof`): where it learns
             robots' presence from the network, only signed presence counts.
         key: the key every robot of the swarm holds.
         counter_start: called once per opened endpoint for its first counter
@@ -178,26 +179,20 @@ class AuthenticatedTransport(Transport):
 
 
 @final
-class _AuthenticatedEndpoint(Endpoint):
+class _AuthenticatedEndpoint(WrappingEndpoint):
     """Signs each datagram with a fresh counter before the inner endpoint sends it."""
 
-    __slots__ = ("_counter", "_inner", "_macs", "_network", "_own", "max_datagram_size", "robot_id")
+    __slots__ = ("_counter", "_macs", "_network", "_own")
 
     def __init__(
         self, network: AuthenticatedTransport, inner: Endpoint, own: bytes, start: int
     ) -> None:
-        self.robot_id = inner.robot_id
-        self.max_datagram_size = inner.max_datagram_size - _TRAILER_SIZE
+        super().__init__(inner, overhead=_TRAILER_SIZE)
         self._network = network
-        self._inner = inner
         self._own = own
         self._counter = start
         # Keyed MACs with the receiver id already hashed in, one per peer sent to.
         self._macs: dict[RobotId, hmac.HMAC] = {}
-
-    @property
-    def address(self) -> Address:
-        return self._inner.address
 
     def send(self, robot_id: RobotId, data: bytes) -> None:
         self._counter = counter = self._counter + 1
@@ -228,18 +223,6 @@ class _AuthenticatedEndpoint(Endpoint):
         mac = self._macs[robot_id] = self._network._mac.copy()
         mac.update(receiver)
         return mac
-
-    def peers(self) -> Iterable[RobotId]:
-        return self._inner.peers()
-
-    def knows(self, robot_id: RobotId) -> bool:
-        return self._inner.knows(robot_id)
-
-    def follow_membership(self, follow: bool) -> None:
-        self._inner.follow_membership(follow)
-
-    def close(self) -> None:
-        self._inner.close()
 
 
 @final

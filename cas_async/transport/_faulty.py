@@ -1,6 +1,6 @@
 """A transport wrapper that makes the wire between robots lossy, late and unruly.
 
-:class:`FaultyTransport` wraps any :class:`~cas_async.transport._base.Transport`
+:class:`FaultyTransport` wraps any :class:`~cas_async._core._transport_contract.Transport`
 (memory or UDP) and models a bad network between the robots: each datagram may be
 lost, delivered twice, delayed, or held back so that later datagrams overtake it,
 as :class:`Faults` says. Robots and layers see an ordinary endpoint; protocols are
@@ -38,17 +38,17 @@ from __future__ import annotations
 import asyncio
 import math
 import random
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final, final
 
-from .._clock import Clock
+from .._core._transport_contract import DatagramSink, Endpoint, Transport
 from .._errors import RobotStateError, UnknownRobotError
-from .._types import Address, RobotId
-from ._base import DatagramSink, Endpoint, Transport
+from .._time._clock import Clock
+from .._types import RobotId
+from ._wrapping import WrappingEndpoint
 
 if TYPE_CHECKING:
-    from ._presence import PresenceSeal
+    from .._wire._presence import PresenceSeal
 
 __all__ = ["Faults", "FaultyTransport"]
 
@@ -127,37 +127,21 @@ class _Pending:
 
 
 @final
-class FaultyEndpoint(Endpoint):
+class FaultyEndpoint(WrappingEndpoint):
     """An endpoint of a :class:`FaultyTransport`: faults on send, the rest delegated."""
 
-    __slots__ = (
-        "_closed",
-        "_delayed",
-        "_held",
-        "_inner",
-        "_loop",
-        "_net",
-        "_rng",
-        "max_datagram_size",
-        "robot_id",
-    )
+    __slots__ = ("_closed", "_delayed", "_held", "_loop", "_net", "_rng")
 
     def __init__(
         self, transport: FaultyTransport, inner: Endpoint, loop: asyncio.AbstractEventLoop
     ) -> None:
+        super().__init__(inner)
         self._net = transport
-        self._inner = inner
         self._loop = loop
         self._rng = transport.random_for(inner.robot_id)
         self._closed = False
         self._delayed: set[_Pending] = set()
         self._held: list[_Pending] = []  # in the order they were held back
-        self.robot_id = inner.robot_id
-        self.max_datagram_size = inner.max_datagram_size
-
-    @property
-    def address(self) -> Address:
-        return self._inner.address
 
     def send(self, robot_id: RobotId, data: bytes) -> None:
         """Sends ``data`` through the faults (see the module docs).
@@ -241,15 +225,6 @@ class FaultyEndpoint(Endpoint):
         except (UnknownRobotError, RobotStateError):
             self._net._stats["lost"] += 1
 
-    def peers(self) -> Iterable[RobotId]:
-        return self._inner.peers()
-
-    def knows(self, robot_id: RobotId) -> bool:
-        return self._inner.knows(robot_id)
-
-    def follow_membership(self, follow: bool) -> None:
-        self._inner.follow_membership(follow)
-
     def close(self) -> None:
         """Drops the copies still delayed or held back (``lost_at_close``), closes the inner one."""
         if self._closed:
@@ -262,7 +237,7 @@ class FaultyEndpoint(Endpoint):
         self._net._stats["lost_at_close"] += len(pending)
         self._delayed.clear()
         self._held.clear()
-        self._inner.close()
+        super().close()
 
 
 @final

@@ -10,7 +10,7 @@ deterministic, and costs one scheduled callback per receiver and pass instead of
 one per datagram (as a socket read drains what arrived).
 
 With ``pass_objects=True`` the transport carries message objects instead (see
-:mod:`cas_async._wire_codec`): no encoding, no decoding, and none of their checks.
+:mod:`cas_async._wire._payloads`): no encoding, no decoding, and none of their checks.
 The endpoints below do not look at what they carry.
 
 A datagram in flight when its receiver closes is still handed to the receiver's
@@ -22,7 +22,7 @@ transport is told it joined; when it closes, the others are told it left.
 
 With a ``latency``, a datagram sent at simulated instant ``t`` is delivered at
 ``t + latency`` instead (a simulation's network model, see
-:mod:`cas_async._deliveries`): the datagrams of one instant reach a robot ordered by
+:mod:`cas_async._time._deliveries`): the datagrams of one instant reach a robot ordered by
 sender, then by the order each sender sent them, whatever order the robots ran in.
 """
 
@@ -32,17 +32,17 @@ import asyncio
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, final
 
-from .._clock import Clock
-from .._codec import DEFAULT_MAX_DATAGRAM
-from .._deliveries import DATAGRAM, Deliveries
+from .._core._transport_contract import DatagramSink, Endpoint, Transport
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
+from .._time._clock import Clock
+from .._time._deliveries import DATAGRAM, Deliveries
 from .._types import Address, RobotId
-from .._wire_codec import PassThrough
-from ._base import DatagramSink, Endpoint, Transport
+from .._wire._codec import DEFAULT_MAX_DATAGRAM
+from .._wire._payloads import PassThrough
 
 if TYPE_CHECKING:
-    from .._codec import Codec
-    from .._wire_codec import WireCodec
+    from .._wire._codec import Codec
+    from .._wire._payloads import WireCodec
 
 __all__ = ["MemoryTransport"]
 
@@ -168,7 +168,7 @@ class MemoryTransport(Transport):
     Args:
         max_datagram_size: largest datagram, as for a real network.
         pass_objects: pass message objects to the receivers instead of encoding them
-            (see :mod:`cas_async._wire_codec`): faster, but without the size limit and
+            (see :mod:`cas_async._wire._payloads`): faster, but without the size limit and
             encodability checks of a network, so a message that would be refused
             over UDP goes through. Robots on it must run identical stacks.
         latency: simulated seconds between a send and its delivery (see the module

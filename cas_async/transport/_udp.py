@@ -25,11 +25,11 @@ import warnings
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any, Final, Protocol, final
 
+from .._core._transport_contract import DatagramSink, Endpoint, Transport, drop_socket_error
 from .._errors import ConfigurationError, RobotStateError, UnknownRobotError
 from .._types import Address, RobotId
-from ._base import DatagramSink, Endpoint, Transport, drop_socket_error
+from ._batched_socket import SocketWire
 from ._fd_limit import ensure_descriptors
-from ._udp_socket import SocketWire
 
 __all__ = ["MAX_UDP_PAYLOAD", "InsecureBindWarning", "UdpDirectory", "UdpTransport"]
 

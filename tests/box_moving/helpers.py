@@ -10,7 +10,7 @@ from apps.box_moving.floor import Floor
 from apps.box_moving.messages import Sighting
 from apps.box_moving.records import Box
 from cas_async import ConstantSpeed, Message, Pose
-from cas_async._message import field_names
+from cas_async._wire._message import message_fields
 from cas_async.sim import Environment, Motion
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "apps" / "box_moving" / "scenarios"
@@ -76,7 +76,7 @@ def drive(
 
 def body(msg: Message) -> tuple[object, ...]:
     """A message's class and fields, without the header: what two copies have in common."""
-    return (type(msg).__name__, *(getattr(msg, name) for name in field_names(type(msg))))
+    return (type(msg).__name__, *(getattr(msg, name) for name in message_fields(type(msg))))
 
 
 def bodies(messages: list[Message]) -> list[tuple[object, ...]]:

@@ -11,7 +11,7 @@ import pytest
 from apps.box_moving import MESSAGES, app
 from apps.box_moving.config import BoxMovingConfig, Destination, ObjectSpec, RobotSpec, Scatter
 from apps.box_moving.layout import drop_spots, place_objects
-from cas_async._message import wire_name
+from cas_async._wire._message import wire_name
 from cas_async.scenario import ScenarioError, load_scenario
 from tests.box_moving.helpers import SCENARIOS
 

@@ -6,7 +6,8 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from cas_async.scenario import RunResult, Trace
+from cas_async.scenario import RunResult
+from cas_async.scenario.output import Trace
 from cas_async.sim import Environment, ItemEvent, ItemEventKind
 from cas_async.testing import run_scenario_file
 

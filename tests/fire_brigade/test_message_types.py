@@ -58,7 +58,7 @@ from apps.fire_brigade.messages import (
 from apps.fire_brigade.strategies import RandomStrategy, TimeStrategy
 from apps.fire_brigade.task import Task
 from cas_async import Clock, ConstantSpeed, Message, MsgType, Pose, VirtualClock
-from cas_async._message import field_names
+from cas_async._wire._message import message_fields
 from cas_async.sim import Environment, SimulatedHands, SimulatedMiddleware
 from cas_async.testing import LayerHarness, assert_roundtrip
 from tests.fire_brigade.test_strategies import params
@@ -130,7 +130,7 @@ def test_no_field_is_optional(cls: type[Message]) -> None:
     optional = [
         field.name
         for field in info.fields
-        if field.name in field_names(cls)
+        if field.name in message_fields(cls)
         and isinstance(field.type, msgspec.inspect.UnionType)
         and any(isinstance(t, msgspec.inspect.NoneType) for t in field.type.types)
     ]
@@ -261,7 +261,7 @@ async def test_a_layer_logs_a_message_of_a_class_it_does_not_take(
 
 def body(msg: Message) -> tuple[object, ...]:
     """A message's class and fields, without the header the runtime stamped."""
-    return (type(msg), *(getattr(msg, name) for name in field_names(type(msg))))
+    return (type(msg), *(getattr(msg, name) for name in message_fields(type(msg))))
 
 
 @pytest.mark.cas_virtual

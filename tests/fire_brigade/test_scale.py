@@ -16,7 +16,7 @@ from apps.fire_brigade.base import Peers
 from apps.fire_brigade.config import FireBrigadeConfig, Stations
 from apps.fire_brigade.messages import Kind
 from cas_async import LayerError
-from cas_async._cli import main
+from cas_async._cli._main import main
 from cas_async.scenario import RunStatus, ScenarioError, load_scenario
 from tests.fire_brigade.helpers import SCENARIOS, run_checked
 from tests.fire_brigade.test_layers import NORTH, SOUTH, Brigade, Spot, play

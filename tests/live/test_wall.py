@@ -6,7 +6,7 @@ import asyncio
 
 import pytest
 
-from cas_async.live._wall import LAG_LIMIT, SLICE, Pacer, wall_bounded
+from cas_async.live._pacer import LAG_LIMIT, SLICE, Pacer, wall_bounded
 
 
 class FakeWall:

@@ -11,7 +11,7 @@ import pytest
 pytest.importorskip("pettingzoo")
 
 from cas_async import VirtualTimeLoop
-from cas_async.rl._loop import SteppingLoop
+from cas_async.rl._stepping_loop import SteppingLoop
 
 
 async def swarm_of_timers(log: list[tuple[float, int]], seed: int) -> None:

@@ -32,7 +32,7 @@ async def zenoh_session(mode: str, endpoint: str) -> AsyncIterator[Any]:
     """A raw Zenoh session: a router listening on ``endpoint``, or a client of it; closed after."""
     import zenoh
 
-    from cas_async.transport._zenoh import loopback_config
+    from cas_async.transport.zenoh._transport import loopback_config
 
     if mode == "router":
         config = loopback_config(mode="router", listen=[endpoint])

@@ -14,16 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cas_async import Layer, Pose, Robot, RobotId
-from cas_async.scenario import (
-    Mission,
-    Objective,
-    RunResult,
-    SimulationSetup,
-    Tally,
-    Trace,
-    Watch,
-    setting,
-)
+from cas_async.scenario import Mission, Objective, RunResult, SimulationSetup, Tally, Watch, setting
+from cas_async.scenario.output import Trace
 
 __all__ = ["Board", "ChoreCount", "Chores", "ChoresApp", "ChoresConfig", "Doer", "app"]
 

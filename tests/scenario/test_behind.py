@@ -7,7 +7,8 @@ import time
 from pathlib import Path
 
 import cas_async
-from cas_async.scenario import RunResult, RunStatus, ScenarioRun, load_scenario, summary_table
+from cas_async.scenario import RunResult, RunStatus, ScenarioRun, load_scenario
+from cas_async.scenario.output import summary_table
 
 ROOT = Path(__file__).resolve().parents[2]
 GATHERING = ROOT / "examples" / "gathering" / "gathering.toml"

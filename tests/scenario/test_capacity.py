@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from cas_async.scenario import ScenarioError, load_scenario
-from cas_async.scenario._capacity import (
+from cas_async.scenario._spec._capacity import (
     ROBOT_MEMORY,
     SAMPLE_MEMORY,
     Capacity,

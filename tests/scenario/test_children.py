@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from cas_async.scenario._children import Children
+from cas_async.scenario._processes._children import Children
 from tests.processes_support import free_endpoint
 
 pytest.importorskip("zenoh")

@@ -17,8 +17,8 @@ import msgspec
 import pytest
 
 from cas_async import SwarmKey
-from cas_async._deliveries import DATAGRAM, ITEM
-from cas_async.scenario._control import (
+from cas_async._time._deliveries import DATAGRAM, ITEM
+from cas_async.scenario._processes._control import (
     WORLD,
     Beat,
     Bye,
@@ -37,10 +37,10 @@ from cas_async.scenario._control import (
     Window,
     next_instant,
 )
-from cas_async.scenario._observer import MotionRecord, Observation
+from cas_async.scenario._processes._observer import MotionRecord, Observation
 
 zenoh = pytest.importorskip("zenoh")
-from cas_async.transport._zenoh import loopback_config  # noqa: E402
+from cas_async.transport.zenoh._transport import loopback_config  # noqa: E402
 from tests.zenoh_support import namespace, until  # noqa: E402
 
 KEY = SwarmKey(bytes(range(32)))

@@ -22,9 +22,8 @@ from cas_async.scenario import (
     load_scenario,
     run_scenario,
     setting,
-    summary_table,
-    write_results,
 )
+from cas_async.scenario.output import summary_table, write_results
 from cas_async.sim import Environment
 from tests.scenario.fake_app import FakeApp
 

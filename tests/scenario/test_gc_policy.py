@@ -11,12 +11,12 @@ import pytest
 
 import cas_async
 from apps.fire_brigade.app import FireBrigade
+from cas_async._core._gc_policy import CEILING, PER_ROBOT, while_building, young_generation_for
 from cas_async.scenario import ScenarioRun, load_scenario
-from cas_async.scenario import _runner as runner_module
-from cas_async.scenario import _worker as worker_module
-from cas_async.scenario._control import Welcome
-from cas_async.scenario._gc_policy import CEILING, PER_ROBOT, while_building, young_generation_for
-from cas_async.scenario._world import World
+from cas_async.scenario._processes import _worker as worker_module
+from cas_async.scenario._processes._control import Welcome
+from cas_async.scenario._processes._world import World
+from cas_async.scenario._run import _runner as runner_module
 
 SHIPPED = Path(__file__).resolve().parents[2] / "apps/fire_brigade/scenarios/thesis_5_8_1.toml"
 

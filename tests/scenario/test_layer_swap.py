@@ -22,8 +22,8 @@ from cas_async import (
     message,
 )
 from cas_async.scenario import LayerSlot, Scenario, ScenarioError, ScenarioRun, load_scenario
-from cas_async.scenario._layers import layer_classes
-from cas_async.scenario._loader import scenario_from_data
+from cas_async.scenario._spec._layers import layer_classes
+from cas_async.scenario._spec._loader import scenario_from_data
 from cas_async.sim import Environment
 from cas_async.testing import run_scenario_file
 from tests.scenario.swaps import CountingTask, SoloByLayers

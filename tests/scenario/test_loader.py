@@ -335,7 +335,7 @@ def test_robot_counts_that_are_no_counts_are_the_app_s_fault(write: WriteScenari
 
 def test_the_protocol_and_the_loader_agree_on_the_members() -> None:
     from cas_async.scenario import SimulationApp
-    from cas_async.scenario._app import APP_MEMBERS
+    from cas_async.scenario._spec._app import APP_MEMBERS
 
     declared = {
         name

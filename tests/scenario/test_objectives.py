@@ -23,16 +23,14 @@ from cas_async import ConfigurationError, Pose, VirtualClock
 from cas_async.scenario import (
     Items,
     Mission,
-    Progress,
     RunResult,
     RunStatus,
     Scenario,
     ScenarioRun,
     Tally,
     load_scenario,
-    results_dict,
-    summary_table,
 )
+from cas_async.scenario.output import Progress, results_dict, summary_table
 from cas_async.sim import Environment
 from tests.scenario.objective_apps import ChoreCount
 
@@ -234,7 +232,7 @@ def test_a_mission_has_a_target_or_an_objective_not_both_nor_neither() -> None:
 
 def test_a_mission_of_its_own_is_refused_across_processes(chores: Load) -> None:
     pytest.importorskip("zenoh")  # a World needs it importable; nothing is started here
-    from cas_async.scenario._world import World
+    from cas_async.scenario._processes._world import World
 
     scenario = chores(target=5)
     with pytest.raises(ConfigurationError, match="objective ChoreCount is not distributable"):

@@ -11,7 +11,7 @@ import msgspec
 import pytest
 
 from cas_async import ConstantSpeed, Pose, SimulationError, VirtualClock
-from cas_async.scenario._observer import (
+from cas_async.scenario._processes._observer import (
     ItemRecord,
     MotionRecord,
     Observation,

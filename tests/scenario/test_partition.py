@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from cas_async import Pose
-from cas_async.scenario._partition import partition
+from cas_async.scenario._processes._partition import partition
 from cas_async.sim import Environment
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "apps" / "fire_brigade" / "scenarios"

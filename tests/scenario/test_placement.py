@@ -1,6 +1,6 @@
 """Where a run's robots run: the one placement each kind of scenario gets, and what it observes.
 
-:func:`~cas_async.scenario._placement.place` chooses once; the run itself never
+:func:`~cas_async.scenario._run._placement.place` chooses once; the run itself never
 asks again. Each case builds the mission as a run does and checks the choice:
 its kind, whether the run observes the robots' own Environment or a mirror, and
 whose robots start in this process.
@@ -15,8 +15,8 @@ import pytest
 
 from cas_async import ConfigurationError
 from cas_async.scenario import Scenario, load_scenario
-from cas_async.scenario._app import objective_of
-from cas_async.scenario._placement import (
+from cas_async.scenario._processes._world import World
+from cas_async.scenario._run._placement import (
     Placement,
     Sampled,
     Sampling,
@@ -26,7 +26,7 @@ from cas_async.scenario._placement import (
     place,
     transport_for,
 )
-from cas_async.scenario._world import World
+from cas_async.scenario._spec._app import objective_of
 from cas_async.sim import Environment
 from tests.scenario.test_objectives import SCENARIO as CHORES
 

@@ -25,10 +25,9 @@ from typing import Any, Final
 
 import pytest
 
-from cas_async.scenario import (
+from cas_async.scenario import RunStatus, ScenarioError
+from cas_async.scenario.sweeps import (
     MetricStats,
-    RunStatus,
-    ScenarioError,
     SweepOutcome,
     SweepPlan,
     SweepRun,
@@ -38,9 +37,9 @@ from cas_async.scenario import (
     sweep,
     sweep_table,
 )
-from cas_async.scenario._sweep_grid import SWEEP_DEFAULTS
-from cas_async.scenario._sweep_report import format_number
-from cas_async.scenario._sweep_results import summarise
+from cas_async.scenario.sweeps._files import format_number
+from cas_async.scenario.sweeps._outcome import summarise
+from cas_async.scenario.sweeps._plan import SWEEP_DEFAULTS
 from tests.test_cli import (
     _ENV,
     PNG_MAGIC,
@@ -476,7 +475,7 @@ def test_a_sweep_stopped_after_its_first_run_keeps_it() -> None:
 @pytest.mark.slow
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 def test_in_process_a_signal_stops_the_sweep_and_main_returns_130(tmp_path: Path) -> None:
-    from cas_async._cli import main
+    from cas_async._cli._main import main
 
     class SignalOnFirstRun(io.StringIO):
         """stderr that sends this process SIGINT as the first run is reported."""

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from cas_async.scenario import RunStatus, summary_table, write_results
+from cas_async.scenario import RunStatus
+from cas_async.scenario.output import summary_table, write_results
 from cas_async.testing import run_scenario_file
 
 SCENARIO = """

@@ -7,9 +7,9 @@ import math
 import msgspec
 import pytest
 
-from cas_async.scenario._control import Counts, Remote, Window
-from cas_async.scenario._observer import Observation
-from cas_async.scenario._window_costs import WindowCosts
+from cas_async.scenario._processes._control import Counts, Remote, Window
+from cas_async.scenario._processes._observer import Observation
+from cas_async.scenario._processes._window_costs import WindowCosts
 
 
 def window(k: int, busy: float, effects: int = 0) -> Window:

@@ -22,8 +22,8 @@ from cas_async.scenario import (
     ScenarioRun,
     load_scenario,
 )
-from cas_async.scenario import _windowed as windowed
-from cas_async.scenario._windows import Windows
+from cas_async.scenario._processes._windows import Windows
+from cas_async.scenario._run import _windowed as windowed
 from cas_async.sim import Environment
 from cas_async.testing import ScenarioOutcome, run_scenario_file
 

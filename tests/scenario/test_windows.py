@@ -9,8 +9,8 @@ import threading
 import pytest
 
 from cas_async import VirtualTimeLoop
-from cas_async._deliveries import DATAGRAM, Deliveries
-from cas_async.scenario._windows import Held, Windows
+from cas_async._time._deliveries import DATAGRAM, Deliveries
+from cas_async.scenario._processes._windows import Held, Windows
 
 L = 0.5
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from cas_async.scenario import FailOnDrops, RunResult, RunStatus, results_dict, summary_table
+from cas_async.scenario import FailOnDrops, RunResult, RunStatus
+from cas_async.scenario.output import results_dict, summary_table
 
 
 def result(status: RunStatus = RunStatus.COMPLETED, **drops: int) -> RunResult:

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import cas_async
-from cas_async.scenario import Trace, write_plots
-from cas_async.scenario._plot_labels import id_labels
-from cas_async.scenario._plots import _at_times, _exchange_picks, _spread
+from cas_async.scenario.output import Trace, write_plots
+from cas_async.scenario.output._plot_labels import id_labels
+from cas_async.scenario.output._plots import _at_times, _exchange_picks, _spread
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -159,7 +159,7 @@ def test_switched_off_exchange_snapshots_are_said_so(tmp_path: Path, plot_notes:
 
 def figure_texts(monkeypatch: pytest.MonkeyPatch) -> dict[str, list[str]]:
     """The labels and legend entries each figure gets, by file name, once written."""
-    from cas_async.scenario import _plots as plots
+    from cas_async.scenario.output import _plots as plots
 
     texts: dict[str, list[str]] = {}
     save = plots._save

@@ -4,7 +4,7 @@ import io
 
 import pytest
 
-from cas_async.scenario import Progress
+from cas_async.scenario.output import Progress
 
 
 class FakeClock:

@@ -10,14 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cas_async.scenario import (
-    RunResult,
-    RunStatus,
-    results_dict,
-    statistics,
-    summary_table,
-    write_results,
-)
+from cas_async.scenario import RunResult, RunStatus
+from cas_async.scenario.output import results_dict, statistics, summary_table, write_results
 
 
 def make_result(**changes: object) -> RunResult:

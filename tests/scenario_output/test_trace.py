@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cas_async import SimulationError
-from cas_async.scenario import Trace, TraceCsv
+from cas_async.scenario.output import Trace, TraceCsv
 
 
 def xy_of(*points: tuple[float, float]) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 Two Environments on one loop stand for two processes: ``a`` runs robot 1, ``b``
 robot 2, and a courier takes each hand-over's steps from one to the other at their
-instants, as a worker's network does (``cas_async.scenario._network``).
+instants, as a worker's network does (``cas_async.scenario._processes._network``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import random
 import pytest
 
 from cas_async import Pose, SimulationError, UnknownRobotError, VirtualClock
-from cas_async._deliveries import ITEM, MOTION, RECEIPT, Deliveries
+from cas_async._time._deliveries import ITEM, MOTION, RECEIPT, Deliveries
 from cas_async.sim import Environment, ItemLedger, Motion
 from tests.sim.latency_support import (
     CREATED,

@@ -11,8 +11,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from cas_async import ConstantSpeed, Decelerating, PiecewiseSpeed, SimulationError, SpeedProfile
-from cas_async._phases import phase_starts
-from cas_async._profiles import _merged
+from cas_async._body._phases import phase_starts
+from cas_async._body._profiles import _merged
 from cas_async.sim import Phase, check_phases, closing_time
 
 INF = math.inf

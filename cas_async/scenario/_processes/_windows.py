@@ -1,0 +1,158 @@
+"""Simulated time in lookahead windows: the conservative parallel simulation of a run.
+
+With a network latency ``L`` nothing a robot does at ``t`` reaches another robot
+before ``t + L`` (see :mod:`cas_async._time._deliveries`). So every event before
+``T + L``, where ``T`` is the earliest event to come of the whole run, can run
+without waiting for anyone: that is a *window*. When every event before the
+window's end has run, the window closes: the run observes what happened in it
+(:mod:`._observer`), the processes of a run across processes exchange what their
+robots sent each other, and the next window opens at the next event of the whole
+run, ``L`` long. This is the lookahead of conservative parallel discrete-event
+simulation (YAWNS; ns-3's distributed simulator; HLA's time management): one
+synchronization per window instead of one per instant.
+
+A window's events all run before it closes, and its end depends only on the
+run's events, which are the same however the robots are spread: a run stops at
+the end of the window in which its mission was complete, in one process as in
+many, and so measures the same.
+
+:class:`Windows` drives a :class:`~cas_async._time._virtual_loop.VirtualTimeLoop`
+(through :meth:`~cas_async._time._virtual_loop.VirtualTimeLoop.run_windows`): the loop
+asks it when its next event is at or after the window's end, and a window
+closes on a task of its own, so that closing may await (a paced live view, the
+other processes' news).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import selectors
+from collections.abc import Awaitable, Callable
+from typing import Final
+
+__all__ = ["Held", "Windows"]
+
+Closer = Callable[[float, float], Awaitable[float | None]]
+"""``close(end, next_event)``: closes the window ending at ``end``; the next event of
+this process is at ``next_event``. Returns the next window's end, or ``None`` when
+the run is over."""
+QuickCloser = Callable[[float, float], float | None]
+"""``quick(end, next_event)``: closes the window at once when nothing in it needs to
+await (most windows of a run in one process); returns the next window's end, or
+``None`` when it cannot (then ``close`` does it)."""
+
+_SELECT: Final = 0.05
+"""Wall seconds the idle loop waits for other threads while a window closes."""
+
+
+class Windows:
+    """The windows of one loop (see the module docs).
+
+    Args:
+        loop: the loop whose time moves in windows.
+        first_end: where the first window ends (the start plus the latency).
+        close: closes a window (see :data:`Closer`).
+        failed: called when closing a window raised (see :attr:`failure`).
+        idle: called whenever the closing waited ~50 ms for other threads in vain,
+            so that whoever waits can look at the wall clock.
+        quick: closes a window at once where it can (see :data:`QuickCloser`).
+    """
+
+    def __init__(
+        self,
+        loop: asyncio.AbstractEventLoop,
+        first_end: float,
+        close: Closer,
+        failed: Callable[[], None] = lambda: None,
+        idle: Callable[[], None] = lambda: None,
+        quick: QuickCloser | None = None,
+    ) -> None:
+        self._loop = loop
+        self._idle = idle
+        self._quick = quick
+        self._end = first_end
+        self._close = close
+        self._failed = failed
+        self._closing: asyncio.Task[None] | None = None
+        self.rounds = 0
+        """Windows closed so far."""
+        self.over = False
+        """The run is over: time no longer moves in windows."""
+        self.failure: BaseException | None = None
+        """What closing a window raised, if it failed (the run then fails)."""
+
+    @property
+    def end(self) -> float:
+        """The loop time the open window ends at (``inf`` once the run is over)."""
+        return self._end
+
+    def closed(
+        self, next_event: float, selector: selectors.BaseSelector
+    ) -> list[tuple[selectors.SelectorKey, int]]:
+        """The loop is idle and its next event is at or after :attr:`end`: the window closes."""
+        if self.over:  # nothing is scheduled at all (the end is inf): as a loop without windows
+            return selector.select(None)
+        if self._closing is None:
+            following = None if self._quick is None else self._quick(self._end, next_event)
+            if following is not None:
+                self.rounds += 1
+                self._end = following
+                return []  # the loop looks again: runs on, or closes the next window
+            self._closing = self._loop.create_task(self._run_close(self._end, next_event))
+            return []
+        # The closing waits for another thread (another process's news): wait with it.
+        ready = selector.select(_SELECT)
+        if not ready:
+            self._idle()
+        return ready
+
+    async def _run_close(self, end: float, next_event: float) -> None:
+        try:
+            following = await self._close(end, next_event)
+        except BaseException as exc:
+            self.failure = exc
+            self.stop()
+            self._failed()
+            if not isinstance(exc, Exception):
+                raise
+            return
+        finally:
+            self._closing = None
+        self.rounds += 1
+        if following is None:
+            self.stop()
+        elif not self.over:
+            self._end = following
+
+    def stop(self) -> None:
+        """The run is over: time moves freely from now on (the robots are being stopped)."""
+        self.over = True
+        self._end = math.inf
+
+
+class Held:
+    """Windows that never open: the loop's time stands still (a world process waits on others).
+
+    While a world waits for its workers, nothing on its own loop may make time
+    jump (a stray timer would): the idle loop only waits for other threads, and
+    calls ``idle`` every time it waited for nothing (about every 50 ms), so that
+    whoever waits can look at the wall clock.
+
+    Args:
+        idle: called when a wait for other threads ended with nothing.
+    """
+
+    end = -math.inf
+
+    def __init__(self, idle: Callable[[], None] = lambda: None) -> None:
+        self._idle = idle
+
+    def closed(
+        self, next_event: float, selector: selectors.BaseSelector
+    ) -> list[tuple[selectors.SelectorKey, int]]:
+        """Waits for other threads (the workers' news), never moving time."""
+        ready = selector.select(_SELECT)
+        if not ready:
+            self._idle()
+        return ready

@@ -1,0 +1,485 @@
+"""The world process of a run across processes: it shares the robots out, and observes them.
+
+The **world** (plugged into :class:`~cas_async.scenario.ScenarioRun`) builds the
+scenario like a run in one process (the mission: its robots, objective and
+groups) but starts no robot. It runs a Zenoh router the workers connect to, deals
+the robots out (:mod:`._partition`), starts the workers (``run --processes``) or
+waits for them (``python -m cas_async world``), and observes: every window, every
+worker's :class:`~._control.Window` goes to the run's
+:class:`~._observer.Observer`, in the one order a run in one process applies them
+too, and the world grants the next window, or stops the run.
+
+Nothing else goes through the world: robots talk to robots, and hand items over,
+worker to worker. A worker that exits, or goes quiet for ``run.window_limit``
+wall seconds, ends the run as failed, naming it and its robots, and every run
+leaves a ``results.json`` (the CLI writes it).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import secrets
+import time
+from collections.abc import Callable
+from typing import Any, Final
+
+from ..._core._transport_contract import Transport
+from ..._errors import ConfigurationError
+from ..._time._clock import Clock, ScaledClock
+from ..._types import RobotId
+from ..._wire._swarm_key import SwarmKey
+from ...sim._environment import Environment
+from ...transport._memory import MemoryTransport
+from ...transport.zenoh import import_zenoh, loopback_config
+from ...transport.zenoh._sessions import with_free_port
+from .._spec._app import Mission
+from .._spec._app_import import robot_counts
+from .._spec._capacity import Capacity, processes_problem
+from .._spec._loader import DEFAULT_LATENCY, Scenario
+from ..output._results import RunStatus
+from ._children import Children
+from ._control import (
+    BEAT_EVERY,
+    HURRY_LIMIT,
+    WORLD,
+    Beat,
+    Bye,
+    Channel,
+    Control,
+    Counts,
+    Failed,
+    Go,
+    Grant,
+    Ready,
+    Stop,
+    Window,
+    next_instant,
+)
+from ._liveness import Liveness
+from ._lobby import Lobby
+from ._lost import WorkerLost, WorkerRefused
+from ._observer import Observation, Observer
+from ._partition import lost_robots, partition
+from ._tally import summed_faults, summed_messages
+from ._window_costs import WindowCosts
+
+__all__ = ["World"]
+
+GO_AHEAD: Final = 0.5
+"""Wall seconds from the world's :class:`Go` to the epoch it names (scaled time)."""
+STOP_LIMIT: Final = 10.0
+"""Wall seconds the world waits for its workers' last counts, all together."""
+
+
+class World:
+    """The world process's side of a run across processes (see the module docs).
+
+    Args:
+        scenario: the loaded scenario.
+        workers: how many worker processes run the robots.
+        key: the swarm key; a random one is made for workers spawned here.
+        listen: the Zenoh endpoint the world's router listens on.
+        spawn: start the workers here as child processes (``--processes``), or
+            wait for workers started elsewhere (``python -m cas_async world``).
+
+    Raises:
+        ConfigurationError: fewer than one worker, or Zenoh is not installed.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        workers: int,
+        key: SwarmKey | None,
+        listen: str = "tcp/127.0.0.1:0",
+        spawn: bool = True,
+    ) -> None:
+        if workers < 1:
+            raise ConfigurationError(f"a run across processes needs >= 1 worker, got {workers}")
+        problem = processes_problem(
+            robot_counts(scenario.app, scenario.app_path, scenario.config),
+            workers,
+            Capacity.of_this_machine(),
+            samples=scenario.run.max_time / scenario.run.trace_interval,
+        )
+        if problem is not None:
+            raise ConfigurationError(f"{scenario.path}: {problem}")
+        if scenario.network.latency <= 0:
+            raise ConfigurationError(
+                f"{scenario.path}: network.latency = 0 runs in one process only: a run across "
+                "processes needs a latency > 0, the simulated time a process may run ahead of "
+                "the others without hearing from them (leave it out for the default, "
+                f"{DEFAULT_LATENCY} s)"
+            )
+        import_zenoh()  # a clear error now, before anything starts
+        if key is None and spawn:
+            key = SwarmKey(secrets.token_bytes(32))
+        self._scenario = scenario
+        self._workers = workers
+        self._key = key
+        self._listen = listen
+        self._spawn = spawn
+        self.namespace = f"cas_async/run/{secrets.token_hex(8)}"
+        self._session: Any = None
+        self._channel: Channel | None = None
+        self._lobby: Lobby | None = None
+        self._children = Children(self._exited)
+        self._watchers: list[asyncio.Task[None]] = []
+        self._ready: set[int] = set()
+        self._counts: dict[int, Counts] = {}
+        self._byes: set[int] = set()
+        self._windows: dict[int, dict[int, Window]] = {}  # k -> worker -> its window
+        self._flowing: list[Observation] = []  # scaled time: records not applied yet
+        self._heard: dict[int, float] = {}  # scaled time: each worker's simulated time heard
+        self._liveness = Liveness(
+            workers,
+            scenario.run.window_limit,
+            lambda who: lost_robots(self._shares, who),
+            self.tick,
+        )
+        self._beaten = 0.0  # when the world last said it lives (Beat)
+        self._token_of_world: Any = None
+        self._lost: BaseException | None = None
+        self._news: asyncio.Event | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._pids: dict[int, int] = {}  # a worker's process id (its hello's) -> its index
+        self._shares: list[list[RobotId]] = []
+        self._costs = WindowCosts()  # rounds, cross-process effects, waits (see stats)
+        self.endpoint = ""
+        """Where the router listens, once started."""
+
+    # -- what ScenarioRun asks -------------------------------------------------------
+
+    def transport(self) -> Transport:
+        """What the world's own copies of the robots are built with: they never start."""
+        return MemoryTransport()
+
+    def adopt(self, environment: Environment, mission: Mission) -> None:
+        """Takes the built mission: the robots are shared out by the scenario's partition.
+
+        Raises:
+            ConfigurationError: more workers than robots, or the app's partition is wrong.
+        """
+        ids = [robot.robot_id for robot in mission.robots]
+        try:
+            self._shares = partition(
+                environment, ids, self._workers, self._scenario.run.partition, self._scenario.app
+            )
+        except ValueError as exc:
+            raise ConfigurationError(f"{self._scenario.path}: --processes: {exc}") from None
+
+    @property
+    def shares(self) -> list[list[RobotId]]:
+        """The robots each worker runs."""
+        return [list(share) for share in self._shares]
+
+    async def start(self, clock: Clock) -> None:
+        """Opens the router, starts (or awaits) the workers, and starts the run.
+
+        On scaled time the run starts at a wall-clock instant a moment ahead (the
+        epoch its :class:`Go` names): the workers' clocks and ``clock``, the
+        world's own, all start at it, and this returns once it has come, so that
+        the world's samples and progress are labelled with the robots' time.
+
+        Raises:
+            ConfigurationError: the router cannot listen.
+            WorkerLost: a worker exited or did not get ready within ``run.window_limit``.
+        """
+        self._news = asyncio.Event()
+        self._loop = asyncio.get_running_loop()
+        if not self._scenario.run.virtual:  # else the held loop ticks
+            self._watchers.append(asyncio.ensure_future(self._ticking()))
+        zenoh = import_zenoh()
+        self.endpoint = with_free_port(self._listen)
+        config = loopback_config(mode="router", listen=[self.endpoint])
+        try:
+            self._session = await asyncio.to_thread(zenoh.open, config)
+        except Exception as exc:
+            raise ConfigurationError(f"world: cannot listen on {self.endpoint}: {exc}") from exc
+        self._lobby = Lobby(
+            self._session,
+            self._key,
+            self._scenario,
+            self._workers,
+            self.namespace,
+            lambda: self.shares,
+            self._joined,
+        )
+        self._channel = channel = Channel(
+            self._session, self.namespace, WORLD, self._key, self._on_message
+        )
+        channel.listen("world")
+        channel.listen("win/*")
+        self._token_of_world = self._session.liveliness().declare_token(f"{self.namespace}/world")
+        self._liveness.watch(self._session, self.namespace)
+        if self._spawn:
+            await self._children.spawn(self._workers, self.endpoint, self._key)
+        limit = self._scenario.run.window_limit
+        await self._until(lambda: len(self._ready) >= self._workers, limit, "workers to be ready")
+        if self._scenario.run.virtual:
+            channel.send("all", Go(0.0))
+            return
+        epoch = time.time() + GO_AHEAD
+        if isinstance(clock, ScaledClock):
+            clock.start_at_wall(epoch)
+        channel.send("all", Go(epoch))
+        await clock.sleep_until(0.0)  # nothing before time 0: the robots start then
+
+    async def coordinate(
+        self, observer: Observer, done: Callable[[], bool], stop: asyncio.Event
+    ) -> tuple[RunStatus, BaseException | None]:
+        """Observes every window and grants the ones after it, until the run ends (virtual time).
+
+        The workers run window ``k + 1`` while the world observes window ``k``: the
+        world grants window ``k + 2`` once it has observed ``k`` (see
+        :mod:`._control`). So a run whose mission was complete in window ``c``
+        runs window ``c + 1`` too (a run in one process does the same, see
+        :mod:`._windowed`), and measures the same.
+        """
+        scenario, channel = self._scenario, self._channel
+        assert channel is not None
+        latency, max_time = scenario.network.latency, scenario.run.max_time
+        end, k = latency, 0
+        channel.send("all", Grant(1))
+        while True:
+            try:
+                windows = await self._windows_of(k, stop)
+            except WorkerLost as lost:
+                return RunStatus.FAILED, lost
+            if windows is None:
+                return RunStatus.INTERRUPTED, None
+            completed = done()  # in the window before: this one was the last
+            began = time.perf_counter()
+            await observer.window(end, [windows[w].observation for w in sorted(windows)])
+            self._costs.closed(windows.values(), time.perf_counter() - began)
+            following = next_instant(windows.values(), latency)
+            if completed or (done() and following >= max_time):
+                return RunStatus.COMPLETED, None
+            if not done():
+                if following >= max_time:
+                    await observer.sample_until(max_time, inclusive=False)
+                    return RunStatus.TIMED_OUT, None
+                channel.send("all", Grant(k + 2))
+            end, k = following + latency, k + 1
+
+    async def follow(self, observer: Observer) -> None:
+        """Applies what the workers report as it comes (scaled time); raises when one is lost.
+
+        A record is applied once every worker has reported up to its instant, so
+        that records come to the observer in order even from different workers.
+
+        Raises:
+            WorkerLost: a worker exited or failed.
+        """
+        news = self._news
+        assert news is not None
+        started = time.monotonic()
+        while True:
+            if self._lost is not None:
+                raise self._lost
+            silent = self._liveness.silent(range(self._workers), started)
+            if silent:  # a worker reports every HEARTBEAT: this one stopped
+                raise self._liveness.lost(silent)
+            if len(self._heard) == self._workers and self._flowing:
+                horizon = min(self._heard.values())
+                ready, later = [], []
+                for observation in self._flowing:
+                    split = observation.split(horizon)
+                    ready.append(split[0])
+                    if split[1]:
+                        later.append(split[1])
+                self._flowing = later
+                observer.apply(ready)
+            news.clear()
+            await news.wait()
+
+    async def _windows_of(self, k: int, stop: asyncio.Event) -> dict[int, Window] | None:
+        """Every worker's window ``k`` (``None``: ``stop`` was set meanwhile)."""
+        news = self._news
+        assert news is not None
+        started = time.monotonic()
+        while True:
+            if self._lost is not None:
+                raise self._lost
+            got = self._windows.get(k, {})
+            if len(got) >= self._workers:
+                return self._windows.pop(k)
+            if stop.is_set():
+                return None
+            missing = [w for w in range(self._workers) if w not in got]
+            silent = self._liveness.silent(missing, started)
+            if silent:
+                raise self._liveness.lost(silent, f" for window {k}")
+            news.clear()
+            await news.wait()  # news, or a tick (see tick): the wall clock is looked at again
+
+    def tick(self) -> None:
+        """Look at the wall clock again: called every ~50 ms while the world waits.
+
+        By the held loop (virtual time, :class:`~._windows.Held`) or the world's own
+        ticking (scaled): a worker that never answers ends the run all the same.
+        """
+        if self._news is not None:
+            self._news.set()
+        now = time.monotonic()
+        if self._channel is not None and now - self._beaten >= BEAT_EVERY:
+            self._beaten = now
+            with contextlib.suppress(Exception):
+                self._channel.send("all", Beat())
+
+    async def _ticking(self) -> None:
+        """Scaled time: :meth:`tick` every 50 ms of the loop's (real) time."""
+        while True:
+            await asyncio.sleep(0.05)
+            self.tick()
+
+    async def finish(self, *, hurry: bool = False) -> None:
+        """The run ended: workers stop their robots; their last counts (``hurry``: briefly)."""
+        channel = self._channel
+        if channel is None:
+            return
+        with contextlib.suppress(Exception):
+            channel.send("all", Stop())
+        live = set(range(self._workers)) - self._byes
+        if live and self._lost is None:
+            with contextlib.suppress(WorkerLost):
+                await self._until(
+                    lambda: not (set(range(self._workers)) - self._byes - self._gone()),
+                    HURRY_LIMIT if hurry else STOP_LIMIT,
+                    "the workers' last counts",
+                )
+
+    def stats(self) -> dict[str, float | int | str]:
+        """What the distribution cost: workers, windows, the longest wait of a worker.
+
+        ``cross_process_effects`` (between workers' robots), wall seconds ``worker_waited_s``
+        (others' windows and grants; ``_grant_s``: grants alone), ``world_observing_s``,
+        ``window_busy_mean_s`` and ``window_busy_max_s`` (see :mod:`._window_costs`); on
+        scaled time, ``late_effects`` and ``most_late_s`` (how far the workers fell behind).
+        """
+        virtual = self._scenario.run.virtual
+        stats = self._costs.stats(self._workers, virtual=virtual)
+        if not virtual:  # scaled time: what came late, and how late
+            counts = self._counts.values()
+            stats["late_effects"] = sum(c.late for c in counts)
+            stats["most_late_s"] = max((c.most_late for c in counts), default=0.0)
+        return stats
+
+    def fault_counts(self) -> dict[str, int] | None:
+        """The ``[faults]`` counts of every worker's robots, summed (``None``: no faults)."""
+        return summed_faults(self._counts.values())
+
+    def message_counts(self) -> tuple[dict[str, dict[str, int]], dict[str, int]]:
+        """Every worker's message counts by kind and class, and drop reasons, summed.
+
+        A lost worker's are its last report's. The control plane's refusals, the
+        world's and the workers', are drops too (``control.*``), and so are the
+        liveliness tokens no process of the run holds (``token.*``, see
+        :mod:`._liveness`).
+        """
+        return summed_messages(
+            self._counts.values(),
+            {} if self._channel is None else self._channel.refused,
+            {} if self._lobby is None else self._lobby.refused,
+            self._liveness.tokens,
+        )
+
+    def abandon(self) -> None:
+        """The run ends at once (a signal): the workers are told to stop, children killed."""
+        if self._channel is not None:
+            with contextlib.suppress(Exception):
+                self._channel.send("all", Stop())
+        self._children.kill()
+
+    async def close(self, *, hurry: bool = False) -> None:
+        """Closes the channels and the router; every child process is gone afterwards."""
+        for closing in (self._channel, self._lobby):
+            if closing is not None:
+                closing.close()
+        self._liveness.close()
+        if self._token_of_world is not None:
+            with contextlib.suppress(Exception):
+                self._token_of_world.undeclare()
+        await self._children.reap(hurry=hurry)
+        for watcher in self._watchers:
+            watcher.cancel()
+        session, self._session = self._session, None
+        if session is not None:
+            session.close()
+
+    # -- workers ---------------------------------------------------------------------
+
+    def _joined(self, pid: int, index: int) -> None:
+        self._pids[pid] = index
+
+    def _exited(self, pid: int, code: int, said: str) -> None:
+        """A child worker exited: a loss unless it said its Bye and exited cleanly."""
+        index = self._pids.get(pid)
+        if code == 0 and index is not None and index in self._byes:
+            return
+        setting_up = len(self._ready) < self._workers
+        when = "during set-up" if setting_up else "during the run"
+        who = "a worker" if index is None else f"worker {index}"
+        # Exit code 2 is a worker's configuration error: the run cannot start on its host.
+        lost = WorkerRefused if setting_up and code == 2 else WorkerLost
+        robots = "" if index is None else lost_robots(self._shares, [index])
+        said = f"its process {pid} exited with code {code} {when}: {said}{robots}"
+        self._lose(lost(f"{who} is gone: {said}"))
+
+    def _gone(self) -> set[int]:
+        return {self._pids[pid] for pid in self._children.exited() if pid in self._pids}
+
+    async def _until(self, condition: Callable[[], bool], seconds: float, what: str) -> None:
+        """Waits until ``condition()`` holds, for at most ``seconds`` of wall time."""
+        news = self._news
+        assert news is not None
+        began = time.monotonic()
+        while not condition():
+            if self._lost is not None:
+                raise self._lost
+            # A worker that joined and whose token went says something soon, or is gone.
+            gone = self._liveness.silent(sorted(set(self._pids.values())), began)
+            if gone:
+                raise self._liveness.lost(gone, f" while the world waited for {what}")
+            if time.monotonic() > began + seconds:
+                raise WorkerLost(f"gave up after {seconds:g} s waiting for {what}")
+            news.clear()
+            await news.wait()  # news, or a tick
+
+    def _lose(self, lost: BaseException) -> None:
+        if self._lost is None:
+            self._lost = lost
+        if self._news is not None:
+            self._news.set()
+
+    # -- what comes in -----------------------------------------------------------------
+
+    def _on_message(self, suffix: str, sender: int, message: Control) -> None:
+        if not 0 <= sender < self._workers:
+            raise ValueError(f"a message from no worker ({sender})")
+        self._liveness.heard(sender)  # a signed word: it lives
+        match message:
+            case Window(k=k):
+                if message.counts.internal or message.counts.external or message.counts.dropped:
+                    self._counts[sender] = message.counts
+                if k >= 0:
+                    self._windows.setdefault(k, {})[sender] = message
+                else:  # scaled time: its robots' records so far, and where its time is
+                    self._costs.flowed(message)
+                    self._flowing.append(message.observation)
+                    self._heard[sender] = max(self._heard.get(sender, 0.0), message.next_event)
+            case Ready():
+                self._ready.add(sender)
+            case Failed(error=error, configuration=True):
+                self._lose(WorkerRefused(f"worker {sender} refused the run: {error}"))
+            case Failed(error=error):
+                self._lose(WorkerLost(f"worker {sender} failed: {error}"))
+            case Bye(counts=counts, waited=waited, waited_grant=grant):
+                self._counts[sender] = counts
+                self._costs.waited(sender, waited, grant)
+                self._byes.add(sender)
+                self._liveness.said_bye(sender)
+        if self._news is not None:
+            self._news.set()
