@@ -54,7 +54,7 @@ SPEEDUP_TARGET: Final = 1.5
 TARGET_CASE: Final = ("scale_2500", 2)
 DISTRIBUTION_KEYS: Final = frozenset({
     "workers", "worker_waited_s", "worker_waited_grant_s", "world_observing_s",
-    "cross_process_effects", "window_busy_mean_s", "window_busy_max_s",
+    "cross_process_effects", "window_busy_mean_s", "window_busy_max_s", "windows",
 })  # fmt: skip
 """``results.json`` ``extra`` figures that describe the distribution, not the run."""
 

@@ -37,6 +37,7 @@ EXIT_USAGE: Final = 2
 STATUS_EXIT: Final = {
     RunStatus.COMPLETED: EXIT_OK,
     RunStatus.FAILED: EXIT_FAILED,
+    RunStatus.STOPPED: EXIT_FAILED,
     RunStatus.TIMED_OUT: EXIT_FAILED,
     RunStatus.INTERRUPTED: EXIT_INTERRUPTED,
 }

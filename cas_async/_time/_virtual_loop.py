@@ -54,6 +54,9 @@ class Windows(Protocol):
         for other threads (another process's news) and return what it found.
         """
 
+    def clip(self, end: float) -> None:
+        """Ends the current window at ``end`` if that is sooner (a pause comes there)."""
+
 
 __all__ = ["POLL_EVERY", "VirtualTimeLoop", "Windows"]
 

@@ -9,6 +9,7 @@ naming what replaced it: ``msgspec.Meta`` (or :func:`~cas_async.finite`) for bou
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import msgspec
@@ -33,11 +34,11 @@ def Bounds(
     Raises:
         ValueError: the bounds leave no value (msgspec's own check).
     """
-    bounds = {"ge": ge, "gt": gt, "le": le, "lt": lt}
-    given = {name: value for name, value in bounds.items() if value is not None}
     if finite:
-        return _finite(**given)
-    return msgspec.Meta(**given)
+        return _finite(ge=ge, gt=gt, le=le, lt=lt)
+    # msgspec's stubs allow one lower and one upper bound; 0.1.0 allowed both kinds.
+    make: Callable[..., msgspec.Meta] = msgspec.Meta
+    return make(ge=ge, gt=gt, le=le, lt=lt)
 
 
 _finite = finite  # the parameter named finite hides the function inside Bounds

@@ -11,8 +11,9 @@ robot's policy layer; the robots start at the first step, with its actions in
 place. ``step(actions)`` gives every robot its action (held until the next step:
 see :mod:`._policy`), advances virtual time by exactly ``dt`` and returns
 observations, rewards (``reward(layer, outcome)``), terminations (the mission's
-objective is complete), truncations (``run.max_time`` came) and infos. A step
-cut short by either end lasts until that instant.
+objective is complete, or every robot stopped before it was), truncations
+(``run.max_time`` came) and infos (the last step's say how the run ended). A step
+cut short by an end lasts until that instant.
 """
 
 from __future__ import annotations
@@ -256,8 +257,16 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
         now = end if ended is None else min(end, ended.sim_time)
         done = episode.run.objective.progress().done
         gained, self._done = done - self._done, done
-        complete = ended is not None and ended.status is RunStatus.COMPLETED
-        timed_out = ended is not None and ended.status is RunStatus.TIMED_OUT
+        if ended is None and (
+            episode.run.decided is not None or end >= self._recipe.scenario.run.max_time
+        ):
+            # Decided (a run with a latency runs a moment past it), or past max_time:
+            # no action can matter any more, and the episode ends in this step.
+            ended = episode.finish()
+        status = None if ended is None else ended.status
+        complete = status is RunStatus.COMPLETED
+        stopped = status is RunStatus.STOPPED
+        timed_out = ended is not None and not complete and not stopped
         live = self.agents
         observations, rewards, infos = {}, {}, {}
         for agent in live:
@@ -272,15 +281,18 @@ class ParallelSwarmEnv(ParallelEnv, Generic[L, O, A]):  # type: ignore[misc] # p
                 timed_out,
                 decisions,
                 episode.environment,
+                stopped,
             )
             layer = self.layer(agent)
             rewards[agent] = float(self._reward(layer, outcome))
             observations[agent] = self._observation(agent, now)
             infos[agent] = self._info(agent, now, decisions)
-        terminations = dict.fromkeys(live, complete)
+        terminations = dict.fromkeys(live, complete or stopped)
         truncations = dict.fromkeys(live, timed_out)
         if ended is not None:
             self.agents = []
+            for info in infos.values():
+                info["status"] = str(ended.status)  # how the episode ended
         return observations, rewards, terminations, truncations, infos
 
     def render(self) -> npt.NDArray[np.uint8]:

@@ -49,6 +49,8 @@ class StepOutcome:
         target: how much the objective needs to be complete.
         complete: the objective is complete: the episode terminated.
         timed_out: ``run.max_time`` came first: the episode was truncated.
+        stopped: every robot stopped before the objective was complete: the
+            episode terminated (see :class:`~cas_async.scenario.RunStatus`).
         decisions: how many decisions this agent's layer took during the step.
         environment: the run's Environment (positions at ``time``, items).
     """
@@ -62,6 +64,7 @@ class StepOutcome:
     timed_out: bool
     decisions: int
     environment: Environment
+    stopped: bool = False
 
 
 @final
@@ -160,6 +163,22 @@ class Episode:
                 f"the run failed at t = {result.sim_time:g} s: {result.error}\n{result.traceback}"
             )
         return result
+
+    def finish(self) -> RunResult:
+        """Runs the episode to its own end without more steps; returns the result.
+
+        For a run decided already (completed, or every robot stopped: a run
+        observed window by window runs a moment on), or past ``run.max_time``: no
+        action can matter any more, and the run ends by its own rule.
+
+        Raises:
+            EpisodeFailed: a layer raised.
+        """
+        if self._result is not None or self._closed or self._driver is None:
+            raise RuntimeError("the episode is over, or never started")
+        driver = self._driver
+        off_running_loop(lambda: self._loop.run_until(math.inf, driver))
+        return self._end(driver)
 
     def stop(self) -> None:
         """Stops the robots where they are (the run ends as interrupted), and closes the loop."""

@@ -42,6 +42,7 @@ class SteppingLoop(VirtualTimeLoop):
     def __init__(self) -> None:
         super().__init__()
         self._horizon = math.inf
+        self._closed_at = math.nan  # the horizon a window was last closed at
 
     def run_until(self, horizon: float, until_done: asyncio.Future[Any] | None = None) -> None:
         """Runs everything due at or before ``horizon``, then pauses (or earlier: see below).
@@ -69,9 +70,24 @@ class SteppingLoop(VirtualTimeLoop):
     def when_idle(
         self, timeout: float | None, selector: selectors.BaseSelector
     ) -> list[tuple[selectors.SelectorKey, int]]:
-        """Pauses when the next timer is after the horizon; else jumps to it as always."""
+        """Pauses when the next timer is after the horizon; else jumps to it as always.
+
+        A lookahead window (a run with a latency) that ends within the step closes
+        first: what comes next is at the latest the next step's actions, at the
+        horizon, and closing a window never moves time.
+        """
         # The next timer or delivery is what the idle jump would go to.
-        if self._horizon != math.inf and self.next_deadline() > self._horizon:
+        horizon = self._horizon
+        if horizon != math.inf and self.next_deadline() > horizon:
+            windows = self._windows
+            if windows is not None and self._closed_at != horizon:
+                # The window closes at the pause at the latest, so that the step sees
+                # what its robots did (where windows end changes no result).
+                windows.clip(horizon)
+                if windows.end <= horizon:
+                    if windows.end == horizon:
+                        self._closed_at = horizon
+                    return windows.closed(horizon, selector)
             self.stop()  # this pass ends with nothing to run: run_forever returns
             return []
         return super().when_idle(timeout, selector)

@@ -33,6 +33,7 @@ class Gathered(Objective):
     verb = "gathered"
     detail = "moving"
     kind = "gathering"
+    distributable = True  # it reads only the Environment: the run may go across processes
 
     def __init__(self, homes: Mapping[RobotId, Point], radius: float, world: Point) -> None:
         self.meeting_point = centroid(homes.values())
@@ -82,7 +83,7 @@ class Gathered(Objective):
         if self._watch is None:
             return
         width, height = self.world
-        positions = self._watch.environment.positions_at(self._watch.clock.now())
+        positions = self._watch.environment.positions_at(self._watch.now())
         for robot, (x, y) in positions.as_dict().items():
             if not (0 <= x <= width and 0 <= y <= height):
                 raise SimulationError(

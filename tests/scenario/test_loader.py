@@ -139,9 +139,9 @@ def test_app_attribute_after_a_colon(write: WriteScenario) -> None:
         pytest.param(
             "sede = 1",
             "run",
-            "unknown key 'sede' (did you mean 'seed'? expected one of: max_time, partition, "
-            "pass_objects, progress_interval, restart_window, restarts, seed, time_factor, "
-            "trace_exchanges, trace_interval, transport, virtual, window_limit)",
+            "unknown key 'sede' (did you mean 'seed'? expected one of: credit, max_time, "
+            "partition, pass_objects, progress_interval, restart_window, restarts, seed, "
+            "time_factor, trace_exchanges, trace_interval, transport, virtual, window_limit)",
             id="unknown",
         ),
     ],

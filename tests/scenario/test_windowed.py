@@ -19,6 +19,7 @@ from cas_async.scenario import (
     RunResult,
     RunStatus,
     Scenario,
+    ScenarioError,
     ScenarioRun,
     load_scenario,
 )
@@ -126,24 +127,38 @@ def test_a_run_with_the_default_latency_moves_in_windows(
     assert 10 < windows.rounds <= result.makespan / DEFAULT_LATENCY + 2
 
 
-def test_a_run_goes_on_exactly_one_window_past_its_completion(
+def test_a_run_goes_on_exactly_its_credit_past_its_completion(
     recorded: list[RecordingWindows], robots_worlds: list[Environment]
 ) -> None:
     outcome = run_small()
     makespan = outcome.result.makespan
     assert makespan is not None
+    credit = 10 * DEFAULT_LATENCY  # run.credit's default: ten latencies
     closed = recorded[0].closed_windows
-    completing = next(k for k, (_, end, _, _) in enumerate(closed) if makespan < end)
-    assert completing == len(closed) - 2  # the window after it is the last
-    how, last_end, _, following = closed[-1]
+    how, last_end, next_event, following = closed[-1]
     assert (how, following) == ("close", None)
-    # The robots ran that one more window, and nothing at or past its end.
+    # The windows stop there, or where nothing happens before it any more.
+    assert last_end <= makespan + credit + 1e-12
+    assert (
+        last_end == pytest.approx(makespan + credit, abs=1e-12) or next_event >= makespan + credit
+    )
+    # The robots ran every event before it, and none at or past it.
     (robots,) = robots_worlds
     times = [event.t for event in robots.items.events]
-    assert max(times) < last_end
+    assert max(times) < makespan + credit
+    assert max(times) > makespan  # they did go on past the completion
     # ...but what the run measured ends at the completion.
     assert outcome.result.sim_time == makespan
     assert outcome.environment.items.events[-1].t <= makespan
+
+
+def test_the_credit_is_a_scenario_key() -> None:
+    makespan = run_small().result.makespan
+    longer = run_small("run.credit=1.0")
+    assert longer.result.makespan == makespan  # what the run measures does not change
+    assert sum(longer.result.messages_external.values()) > 0
+    with pytest.raises(ScenarioError, match=r"run\.credit: expected at least network\.latency"):
+        run_small("run.credit=0.001")
 
 
 def test_the_same_seed_gives_the_same_run() -> None:

@@ -30,13 +30,15 @@ The protocol (world ``W``, workers ``0..n-1``):
   end, then publishes its :class:`Window` (what its robots did, what they sent to
   other processes' robots, its next event) to ``W`` and to the other workers.
   With every window ``k`` in hand, each of them computes where window ``k + 1``
-  ends (:func:`next_instant` plus the latency), the same for all. A worker runs
-  window ``k + 1`` once it has every window ``k`` and ``W``'s :class:`Grant` of
-  ``k + 1``, which ``W`` sends once it has observed window ``k - 1`` (the mission
-  not complete): ``W`` is never on the workers' way, and a run whose mission was
-  complete in window ``c`` runs window ``c + 1`` and no further, in any number of
-  processes. ``W`` then says :class:`Stop`; a worker whose next window would
-  start at or after ``run.max_time`` waits for it;
+  ends (:func:`next_instant` plus the latency, or the grant's cap if sooner), the
+  same for all. A worker runs window ``k + 1`` once it has every window ``k`` and
+  ``W``'s :class:`Grant` of ``k + 1``, which ``W`` sends once it has observed
+  window ``k - 1``, capped ``run.credit`` past what it observed: ``W`` is not on
+  the workers' way. Once ``W`` decided the run at ``t`` (its objective met, or
+  every robot stopped) it caps the windows at ``t + run.credit``, the instant
+  the run ends in any number of processes, and says :class:`Stop` once the
+  workers ran every event before it; a worker whose next window would start at or
+  after ``run.max_time`` waits for it;
 * scaled time: workers publish :class:`Window` records as they go, unnumbered;
 * a worker that fails says :class:`Failed`; a stopping one says :class:`Bye`
   with its counts.
@@ -177,6 +179,9 @@ class Go(msgspec.Struct, frozen=True, tag="go"):
 class Window(msgspec.Struct, frozen=True, tag="window"):
     """What a worker's robots did in window ``k`` (``-1`` on scaled time), and what comes next.
 
+    ``stopped_at``: the instant every robot of the worker had stopped (their
+    ``run()`` returned), once they have; the world ends the run as *stopped* if
+    the objective was not met by the latest such instant of all workers.
     ``busy``: wall seconds the worker spent on the window, from when it could run
     it (the others' windows before it in hand, and the grant) until it published
     it (see :mod:`._window_costs`).
@@ -187,14 +192,22 @@ class Window(msgspec.Struct, frozen=True, tag="window"):
     observation: Observation
     remote: list[Remote]
     counts: Counts
-    stopped: bool = False
+    stopped_at: Annotated[float, finite(ge=0)] | None = None
     busy: Annotated[float, finite(ge=0)] = 0.0
 
 
 class Grant(msgspec.Struct, frozen=True, tag="grant"):
-    """The workers may run window ``k`` (the world observed window ``k - 2``)."""
+    """The workers may run window ``k`` (the world observed window ``k - 2``), up to ``cap``.
+
+    No event at or after ``cap`` (simulated seconds) runs in window ``k``: the world
+    lets the workers run ``run.credit`` ahead of what it observed, and no further
+    than the instant the run ends. Every worker ends window ``k`` at the same
+    instant: the earliest next event of window ``k - 1`` plus the latency, or
+    ``cap``, whichever comes first.
+    """
 
     k: int
+    cap: Annotated[float, finite(ge=0)]
 
 
 class Beat(msgspec.Struct, frozen=True, tag="beat"):

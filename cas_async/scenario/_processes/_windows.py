@@ -125,6 +125,16 @@ class Windows:
         elif not self.over:
             self._end = following
 
+    def clip(self, end: float) -> None:
+        """Ends the open window at ``end`` instead, if that is sooner (a pause coming there).
+
+        A window may end sooner than the lookahead allows: it then holds fewer events,
+        and what the run measures does not change (it does not depend on where
+        windows end). Nothing changes while a window is closing.
+        """
+        if self._closing is None and not self.over:
+            self._end = min(self._end, end)
+
     def stop(self) -> None:
         """The run is over: time moves freely from now on (the robots are being stopped)."""
         self.over = True
@@ -147,6 +157,9 @@ class Held:
 
     def __init__(self, idle: Callable[[], None] = lambda: None) -> None:
         self._idle = idle
+
+    def clip(self, end: float) -> None:
+        """Nothing to clip: no window is open."""
 
     def closed(
         self, next_event: float, selector: selectors.BaseSelector

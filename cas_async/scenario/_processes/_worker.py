@@ -134,7 +134,7 @@ class _Worker:
         self._listen = listen
         self._k = 0
         self._peers: dict[int, dict[int, Window]] = {}  # window -> worker -> its Window
-        self._grants: set[int] = set()  # the windows the world let run, not run yet
+        self._grants: dict[int, float] = {}  # the windows the world let run, up to their caps
         self._counted = time.monotonic()  # when the counts were last reported
         self._stop: asyncio.Event | None = None
         self._news: asyncio.Event | None = None  # something came in: look again
@@ -144,6 +144,7 @@ class _Worker:
         self._recorder: Recorder | None = None
         self._swarm = Swarm(())
         self._flushing = False
+        self._stopped_at: float | None = None  # when every robot here had stopped
         self._clock: Clock | None = None
         self._final: Counts | None = None  # the counts as the run ended (virtual time)
         self._waited = 0.0  # wall seconds waiting for the others and for grants
@@ -219,6 +220,13 @@ class _Worker:
             await asyncio.wait((running, stopping), return_when=asyncio.FIRST_COMPLETED)
             if running.done() and not running.cancelled() and running.exception() is not None:
                 failed = f"{type(running.exception()).__name__}: {running.exception()}"
+            elif running.done() and not stopping.done():
+                # Every robot of this worker stopped, at this instant. The run goes on
+                # until the world's Stop: the world decides how it ended (the other
+                # workers' robots may still run, and it must see every window), and
+                # these robots still answer what reaches them, as in one process.
+                self._stopped_at = clock.now()
+                await stopping
             stopping.cancel()
             running.cancel()
             if beating is not None:
@@ -283,13 +291,17 @@ class _Worker:
         if time.monotonic() - self._counted >= COUNTS_EVERY:
             self._counted, counts = time.monotonic(), self._counts()
         busy = time.perf_counter() - self._resumed
-        own = Window(k, next_event, recorder.take(), network.take_outgoing(), counts, busy=busy)
+        own = Window(
+            k, next_event, recorder.take(), network.take_outgoing(), counts,
+            stopped_at=self._stopped_at, busy=busy,
+        )  # fmt: skip
         channel.send(f"win/{self._index}", own)
         others = len(self._welcome.shares) - 1
         began = time.perf_counter()
         await self._until(lambda: len(self._peers.get(k, ())) >= others)
         peers = self._peers.pop(k, {})
-        following = next_instant([own, *peers.values()], self._scenario.network.latency)
+        latency = self._scenario.network.latency
+        following = next_instant([own, *peers.values()], latency)
         if following < self._scenario.run.max_time:
             heard = time.perf_counter()
             await self._until(lambda: k + 1 in self._grants)
@@ -306,9 +318,9 @@ class _Worker:
             return None
         for worker, peer in sorted(peers.items()):
             network.receive(worker, peer.observation, peer.remote)
-        self._grants.discard(k + 1)
+        cap = self._grants.pop(k + 1)
         self._k = k + 1
-        return following + self._scenario.network.latency
+        return min(following + latency, cap)
 
     async def _until(self, condition: Callable[[], bool]) -> None:
         """Waits until ``condition`` holds or the run is stopped."""
@@ -333,7 +345,10 @@ class _Worker:
         counts = Counts()
         if time.monotonic() - self._counted >= COUNTS_EVERY:
             self._counted, counts = time.monotonic(), self._counts()
-        window = Window(-1, now, self._recorder.take(), self._network.take_outgoing(), counts)
+        window = Window(
+            -1, now, self._recorder.take(), self._network.take_outgoing(), counts,
+            stopped_at=self._stopped_at,
+        )  # fmt: skip
         self._channel.send(f"win/{self._index}", window)
 
     async def _beat(self) -> None:
@@ -401,8 +416,8 @@ class _Worker:
                         self._network.receive(sender, message.observation, message.remote)
                 elif message.k >= self._k:
                     self._peers.setdefault(message.k, {})[sender] = message
-            case Grant(k=k) if sender == WORLD and k > self._k:
-                self._grants.add(k)
+            case Grant(k=k, cap=cap) if sender == WORLD and k > self._k:
+                self._grants[k] = cap
             case Go(epoch=epoch) if sender == WORLD:
                 if self._go is not None and not self._go.done():
                     self._go.set_result(epoch)

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import secrets
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, Final
 
 from ..._core._transport_contract import Transport
@@ -133,6 +134,7 @@ class World:
         self._windows: dict[int, dict[int, Window]] = {}  # k -> worker -> its window
         self._flowing: list[Observation] = []  # scaled time: records not applied yet
         self._heard: dict[int, float] = {}  # scaled time: each worker's simulated time heard
+        self._stopped_at: dict[int, float] = {}  # scaled time: when each one's robots stopped
         self._liveness = Liveness(
             workers,
             scenario.run.window_limit,
@@ -233,16 +235,22 @@ class World:
         """Observes every window and grants the ones after it, until the run ends (virtual time).
 
         The workers run window ``k + 1`` while the world observes window ``k``: the
-        world grants window ``k + 2`` once it has observed ``k`` (see
-        :mod:`._control`). So a run whose mission was complete in window ``c``
-        runs window ``c + 1`` too (a run in one process does the same, see
-        :mod:`._windowed`), and measures the same.
+        world grants window ``k + 2`` once it has observed ``k``, capped
+        ``run.credit`` past it (see :mod:`._control`). Once a window decides the run
+        at ``t`` (its mission complete, or every robot stopped before it was; the
+        window in which the last robot stopped is observed up to that instant only),
+        the workers run every event before ``t + run.credit``, unobserved, and no
+        later one, as a run in one process does (see :mod:`.._run._windowed`): both
+        measure the same.
         """
         scenario, channel = self._scenario, self._channel
         assert channel is not None
-        latency, max_time = scenario.network.latency, scenario.run.max_time
+        latency, max_time, credit = scenario.network.latency, scenario.run.max_time, scenario.credit
+        caps = {1: min(credit, max_time)}
+        channel.send("all", Grant(1, caps[1]))
         end, k = latency, 0
-        channel.send("all", Grant(1))
+        verdict: RunStatus | None = None
+        ends_at = math.inf  # once decided: the run ends there
         while True:
             try:
                 windows = await self._windows_of(k, stop)
@@ -250,25 +258,52 @@ class World:
                 return RunStatus.FAILED, lost
             if windows is None:
                 return RunStatus.INTERRUPTED, None
-            completed = done()  # in the window before: this one was the last
             began = time.perf_counter()
-            await observer.window(end, [windows[w].observation for w in sorted(windows)])
-            self._costs.closed(windows.values(), time.perf_counter() - began)
             following = next_instant(windows.values(), latency)
-            if completed or (done() and following >= max_time):
-                return RunStatus.COMPLETED, None
-            if not done():
-                if following >= max_time:
+            if verdict is None:
+                verdict, decided_at = await self._observe(observer, windows, end, done)
+                if verdict is not None:
+                    ends_at = decided_at + credit
+                elif following >= max_time:
                     await observer.sample_until(max_time, inclusive=False)
+                    self._costs.closed(windows.values(), time.perf_counter() - began)
                     return RunStatus.TIMED_OUT, None
-                channel.send("all", Grant(k + 2))
-            end, k = following + latency, k + 1
+            self._costs.closed(windows.values(), time.perf_counter() - began)
+            if verdict is not None and (end >= ends_at or following >= min(ends_at, max_time)):
+                return verdict, None  # every event before the end ran: none after it
+            caps[k + 2] = min(end + credit, ends_at, max_time)
+            channel.send("all", Grant(k + 2, caps[k + 2]))
+            end, k = min(following + latency, caps.pop(k + 1)), k + 1
+
+    async def _observe(
+        self,
+        observer: Observer,
+        windows: dict[int, Window],
+        end: float,
+        done: Callable[[], bool],
+    ) -> tuple[RunStatus | None, float]:
+        """Observes window ``end`` ends at; whether it decided the run, and at which instant."""
+        observations = [windows[w].observation for w in sorted(windows)]
+        stopped_at = _all_stopped(windows.values())
+        if stopped_at is not None:  # the last robot stopped: observed up to that instant
+            await observer.window(stopped_at, [o.split(stopped_at)[0] for o in observations])
+            if done():  # met by then: a tie goes to the objective
+                assert observer.completed_at is not None
+                return RunStatus.COMPLETED, observer.completed_at
+            return RunStatus.STOPPED, stopped_at
+        await observer.window(end, observations)
+        if done():
+            assert observer.completed_at is not None
+            return RunStatus.COMPLETED, observer.completed_at
+        return None, math.inf
 
     async def follow(self, observer: Observer) -> None:
         """Applies what the workers report as it comes (scaled time); raises when one is lost.
 
         A record is applied once every worker has reported up to its instant, so
         that records come to the observer in order even from different workers.
+        Returns once every worker's robots have stopped and everything up to the
+        instant the last of them did is applied: the run then decides how it ended.
 
         Raises:
             WorkerLost: a worker exited or failed.
@@ -282,16 +317,23 @@ class World:
             silent = self._liveness.silent(range(self._workers), started)
             if silent:  # a worker reports every HEARTBEAT: this one stopped
                 raise self._liveness.lost(silent)
-            if len(self._heard) == self._workers and self._flowing:
+            stopped = self._stopped_at
+            all_stopped = len(stopped) == self._workers
+            if len(self._heard) == self._workers:
                 horizon = min(self._heard.values())
-                ready, later = [], []
-                for observation in self._flowing:
-                    split = observation.split(horizon)
-                    ready.append(split[0])
-                    if split[1]:
-                        later.append(split[1])
-                self._flowing = later
-                observer.apply(ready)
+                if all_stopped:
+                    horizon = min(horizon, max(stopped.values()))
+                if self._flowing:
+                    ready, later = [], []
+                    for observation in self._flowing:
+                        split = observation.split(horizon)
+                        ready.append(split[0])
+                        if split[1]:
+                            later.append(split[1])
+                    self._flowing = later
+                    observer.apply(ready)
+                if all_stopped and horizon >= max(stopped.values()):
+                    return
             news.clear()
             await news.wait()
 
@@ -470,6 +512,8 @@ class World:
                     self._costs.flowed(message)
                     self._flowing.append(message.observation)
                     self._heard[sender] = max(self._heard.get(sender, 0.0), message.next_event)
+                    if message.stopped_at is not None:
+                        self._stopped_at[sender] = message.stopped_at
             case Ready():
                 self._ready.add(sender)
             case Failed(error=error, configuration=True):
@@ -483,3 +527,11 @@ class World:
                 self._liveness.said_bye(sender)
         if self._news is not None:
             self._news.set()
+
+
+def _all_stopped(windows: Iterable[Window]) -> float | None:
+    """The instant the last robot stopped, once every worker's robots have; else ``None``."""
+    instants = [window.stopped_at for window in windows]
+    if any(at is None for at in instants):
+        return None
+    return max(at for at in instants if at is not None)

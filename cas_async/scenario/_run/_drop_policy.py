@@ -62,7 +62,7 @@ class FailOnDrops:
     def judge(self, result: RunResult) -> bool:
         """Records the policy in ``result``; fails it if it dropped for these reasons.
 
-        A completed or timed-out run becomes FAILED, with an error that names the
+        A completed, stopped or timed-out run becomes FAILED, with an error that names the
         reasons and counts; a failed run keeps its own error; an interrupted one
         stays interrupted. Returns whether drops failed the run.
         """
@@ -70,7 +70,7 @@ class FailOnDrops:
         failing = result.failing_drops = self.dropped(result.protocol_errors)
         if not failing:
             return False
-        if result.status in (RunStatus.COMPLETED, RunStatus.TIMED_OUT):
+        if result.status in (RunStatus.COMPLETED, RunStatus.STOPPED, RunStatus.TIMED_OUT):
             total = sum(failing.values())
             result.status = RunStatus.FAILED
             result.error = (

@@ -108,6 +108,9 @@ class Placement(Protocol):
     def observed_until(self) -> float | None:
         """The instant the run was observed up to, when it is observed window by window."""
 
+    def decided(self) -> RunStatus | None:
+        """Completed or stopped, once known, if the robots run on before the run ends."""
+
     def stats(self) -> dict[str, float | int | str]:
         """What this mode adds to the results' ``extra``."""
 
@@ -220,6 +223,9 @@ class Sampled(_Here):
     def observed_until(self) -> float | None:
         return None
 
+    def decided(self) -> RunStatus | None:
+        return None  # it ends as soon as it is decided
+
     def stats(self) -> dict[str, float | int | str]:
         return {}
 
@@ -252,6 +258,9 @@ class Windowed(_Here):
 
     def observed_until(self) -> float | None:
         return self._windowed.observed_until
+
+    def decided(self) -> RunStatus | None:
+        return self._windowed.verdict
 
     def stats(self) -> dict[str, float | int | str]:
         return {"windows": self._windowed.rounds}
@@ -295,6 +304,9 @@ class _InWorkers:
 
     def ended(self, status: RunStatus) -> None:
         """The world observed what its workers reported."""
+
+    def decided(self) -> RunStatus | None:
+        return None  # the world decides and ends the run in one step
 
     def stats(self) -> dict[str, float | int | str]:
         return self._world.stats()

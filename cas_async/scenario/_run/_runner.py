@@ -164,15 +164,14 @@ class ScenarioRun:
         """Where the robots were over simulated time."""
         self._measures = PositionMeasures(mission, self.trace.ids)
         self._rows = np.array(self.trace.ids, dtype=np.int64)
-        objective.attach(
-            CallbackWatch(
-                environment,
-                clock,
-                changed=self._changed,
-                completed=self._completed,
-                exchanged=self._exchanged,
-            )
+        self._watch = CallbackWatch(
+            environment,
+            clock,
+            changed=self._changed,
+            completed=self._completed,
+            exchanged=self._exchanged,
         )
+        objective.attach(self._watch)
         if observe is not None:
             observe(environment)
         self._started_swarm = False
@@ -266,6 +265,18 @@ class ScenarioRun:
             raise
         return self
 
+    @property
+    def decided(self) -> RunStatus | None:
+        """How the run ends, as soon as that is known: completed or stopped, else ``None``.
+
+        A run observed window by window (a latency on virtual time) is decided
+        before it ends: its robots run on ``run.credit`` past that instant, as a run
+        across processes does. :attr:`result` is final only once the run ended.
+        """
+        if self._complete.is_set():
+            return RunStatus.COMPLETED
+        return self._placement.decided()
+
     async def until_done(self) -> RunResult:
         """Runs until the target, ``max_time``, ``stop`` or a failure; measures; returns the result.
 
@@ -325,6 +336,8 @@ class ScenarioRun:
         )
         if status is RunStatus.COMPLETED and result.makespan is not None:
             self._sample_last(result.makespan)  # the trace ends where the mission did
+        elif status is RunStatus.STOPPED:
+            self._sample_last(result.sim_time)  # ... or where the robots stopped
         self._measures.write(result, self.trace)
         result.extra.update(self._placement.stats())
         if not self._scenario.run.virtual:  # how far the run fell behind the wall clock
@@ -373,7 +386,11 @@ class ScenarioRun:
         if self._ended:
             return
         objective = self._objective
-        objective.check()  # the full audit of the mission's invariant
+        self._watch.sampling(t)
+        try:
+            objective.check()  # the full audit of the mission's invariant, as of t
+        finally:
+            self._watch.sampling(None)
         carrying = self._carrying()
         xy = self.environment.positions_at(t).xy
         self.trace.sample(t, xy, carrying)
@@ -390,8 +407,8 @@ class ScenarioRun:
 
         Observed window by window (a latency on virtual time, in one process or
         many), the run is measured where its mirror is: at the completion, at
-        ``max_time``, or at the last window's end, the same for any number of
-        processes. Otherwise, now.
+        ``max_time``, where the last robot stopped, or at the last window's end,
+        the same for any number of processes. Otherwise, now.
         """
         observed = self._placement.observed_until()
         if observed is None:

@@ -15,9 +15,10 @@ from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
 from ..._time._clock import Clock
+from ..._time._virtual_loop import VirtualTimeLoop
 from ..output._results import RunStatus
 
-__all__ = ["first_ended", "sampled_until_end"]
+__all__ = ["first_ended", "sampled_until_end", "settled"]
 
 
 async def first_ended(tasks: Iterable[asyncio.Future[Any]]) -> set[asyncio.Future[Any]]:
@@ -53,8 +54,10 @@ async def sampled_until_end(
 
     ``behind`` is told, at each sample, how many simulated seconds after its instant
     it was taken: on scaled time, how far the run fell behind the wall clock (its
-    loop was busy). Returns which end; the exception is that of a failed run (a
-    layer's, or the sampling's).
+    loop was busy). Returns which end (see :class:`~cas_async.scenario.RunStatus`:
+    completed if the objective was met at or before any other end, stopped when the
+    robots stopped first); the exception is that of a failed run (a layer's, or the
+    sampling's).
     """
 
     async def sampling() -> None:
@@ -75,14 +78,33 @@ async def sampled_until_end(
     if stop is not None:
         waits["stop"] = asyncio.ensure_future(stop.wait())
     done = await first_ended(waits.values())
-    if waits["complete"] in done:
+    swarm, sampling_task = waits["swarm"], waits["sampling"]
+    failure = next(
+        (task.exception() for task in (swarm, sampling_task) if task in done and task.exception()),
+        None,
+    )
+    if failure is None and swarm in done:
+        # Every robot stopped. What else happens at this instant is still the run's
+        # (the objective may be met by it): a tie goes to the objective.
+        await settled()
+    if complete.is_set():  # met at or before whatever else ended: completed
         return RunStatus.COMPLETED, None
-    if waits["swarm"] in done or waits["sampling"] in done:
-        error = (waits["swarm"] if waits["swarm"] in done else waits["sampling"]).exception()
-        return RunStatus.FAILED, error or RuntimeError(
-            "every robot stopped (each layer's termination condition held) "
-            "before the mission was complete"
-        )
+    if failure is not None:
+        return RunStatus.FAILED, failure
+    if swarm in done:
+        return RunStatus.STOPPED, None
     if "stop" in waits and waits["stop"] in done:
         return RunStatus.INTERRUPTED, None
     return RunStatus.TIMED_OUT, None
+
+
+async def settled() -> None:
+    """Returns once everything due at this instant has run (on virtual time; else at once).
+
+    On a :class:`~cas_async.VirtualTimeLoop` the loop is then idle and time has not
+    moved: what a run decides next sees every event of its instant, however the
+    robots' tasks were ordered.
+    """
+    loop = asyncio.get_running_loop()
+    if isinstance(loop, VirtualTimeLoop):
+        await loop.idle()

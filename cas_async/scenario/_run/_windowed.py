@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import asyncio
 import math
+from asyncio import FIRST_COMPLETED
 from collections.abc import Awaitable, Callable
-from typing import final
+from typing import Any, final
 
 from ..._errors import ConfigurationError
 from ..._time._clock import Clock
@@ -61,7 +62,11 @@ class WindowedRun:
         """Whether the run reached ``max_time`` (or nothing could happen any more)."""
         self.ended = asyncio.Event()
         """Set when the windows end by themselves: timed out, or closing one failed."""
-        self._last = False  # the mission is complete: the window running is the last
+        self._credit = scenario.credit
+        self._ends_at = math.inf  # once decided: the run ends there
+        self._stopped_at: float | None = None  # when every robot had stopped, if they have
+        self.verdict: RunStatus | None = None
+        """Completed or stopped, once a window decided it (see :meth:`_close`)."""
         self._windows: Windows | None = None
         self._loop: VirtualTimeLoop | None = None
 
@@ -83,20 +88,34 @@ class WindowedRun:
     async def until_done(
         self, running: Awaitable[None], complete: asyncio.Event, stop: asyncio.Event
     ) -> tuple[RunStatus, BaseException | None]:
-        """Waits for the end of the run: which it is, and the failure of a failed one."""
+        """Waits for the end of the run: which it is, and the failure of a failed one.
+
+        Every robot stopping ends nothing by itself: the window in which they did
+        decides, once it has observed everything up to that instant (the objective
+        may have been met by then: completed, else stopped), as a run across
+        processes does.
+        """
+        swarm = asyncio.ensure_future(running)
         waits = {
             "windows": asyncio.ensure_future(self.ended.wait()),
-            "swarm": asyncio.ensure_future(running),
             "stop": asyncio.ensure_future(stop.wait()),
         }
-        done = await first_ended(waits.values())
+        try:
+            waiting: list[asyncio.Future[Any]] = [swarm, *waits.values()]
+            done, _ = await asyncio.wait(waiting, return_when=FIRST_COMPLETED)
+            if swarm in done and swarm.exception() is None and not self.ended.is_set():
+                self._stopped_at = self._clock.now()  # the windows decide (see _close)
+                done = await first_ended(waits.values())
+        finally:
+            swarm.cancel()
+            for task in waits.values():
+                task.cancel()
         if complete.is_set():
             return RunStatus.COMPLETED, None
-        if waits["swarm"] in done:
-            return RunStatus.FAILED, waits["swarm"].exception() or RuntimeError(
-                "every robot stopped (each layer's termination condition held) "
-                "before the mission was complete"
-            )
+        if swarm.done() and not swarm.cancelled() and swarm.exception() is not None:
+            return RunStatus.FAILED, swarm.exception()
+        if self.verdict is not None:
+            return self.verdict, None
         if self.failure is not None:
             return RunStatus.FAILED, self.failure
         if waits["stop"] in done:
@@ -143,40 +162,69 @@ class WindowedRun:
         end_t = clock.at_loop_time(end)
         following = clock.at_loop_time(next_event)
         if (
-            self._last
+            self.verdict is not None
+            or self._stopped_at is not None
             or observer.next_sample < end_t
             or following >= self._max_time
             or math.isinf(following)
         ):
             return None
         observer.apply([self._recorder.take()], until=end_t)
-        if self._done():  # complete in this window: the next one is the last
-            self._last = True
-        return next_event + clock.loop_seconds(self.latency)
+        if self._done():  # complete in this window: the run ends a credit later
+            self._decide(RunStatus.COMPLETED)
+        return self._next_end(next_event)
 
     async def _close(self, end: float, next_event: float) -> float | None:
         """Observes the window that ends at ``end``; the end of the next one, if any.
 
-        The robots run one more window after the one in which the mission was
-        complete, unobserved, as a run across processes does (its workers run a
-        window while the world observes the one before): both measure the same.
+        Once a window decided the run (completed, or every robot stopped before the
+        objective was met), the robots run every event before ``run.credit`` past
+        that instant, unobserved, and no later one, as a run across processes does
+        (its workers run ahead of the world's observation): both measure the same.
+        A window in which every robot stopped is observed up to that instant only.
         """
-        if self._last:
-            self.ended.set()
+        clock, observer = self._clock, self._observer
+        end_t, following = clock.at_loop_time(end), clock.at_loop_time(next_event)
+        if self.verdict is None:
+            records = self._recorder.take()
+            stopped_at = self._stopped_at
+            if stopped_at is not None:
+                await observer.window(stopped_at, [records.split(stopped_at)[0]])
+                if self._done():
+                    self._decide(RunStatus.COMPLETED)
+                else:
+                    self._decide(RunStatus.STOPPED, stopped_at)
+            else:
+                await observer.window(end_t, [records])
+                if self._done():
+                    self._decide(RunStatus.COMPLETED)
+                elif following >= self._max_time or math.isinf(following):
+                    # Nothing happens before max_time any more: sample up to it, and time out.
+                    await observer.sample_until(self._max_time, inclusive=False)
+                    self.timed_out = True
+                    self.ended.set()
+                    return None
+        if self.verdict is not None and (
+            end_t >= self._ends_at or following >= min(self._ends_at, self._max_time)
+        ):
+            self.ended.set()  # every event before the end ran: none after it
             return None
+        return self._next_end(next_event)
+
+    def _decide(self, verdict: RunStatus, at: float | None = None) -> None:
+        """The run is decided at ``at`` (the completion's instant when ``None``)."""
+        if at is None:
+            at = self._observer.completed_at
+            assert at is not None
+        self.verdict = verdict
+        self._ends_at = at + self._credit
+
+    def _next_end(self, next_event: float) -> float:
+        """The next window's end (loop time): a latency after its first event, or sooner.
+
+        Sooner when the run ends before: at ``max_time``, or a credit past the
+        instant it was decided.
+        """
         clock = self._clock
-        await self._observer.window(clock.at_loop_time(end), [self._recorder.take()])
-        following = clock.at_loop_time(next_event)
-        if self._done():
-            if following >= self._max_time or math.isinf(following):
-                self.ended.set()
-                return None
-            self._last = True
-            return next_event + clock.loop_seconds(self.latency)
-        if following >= self._max_time or math.isinf(following):
-            # Nothing happens before max_time any more: sample up to it, and time out.
-            await self._observer.sample_until(self._max_time, inclusive=False)
-            self.timed_out = True
-            self.ended.set()
-            return None
-        return next_event + clock.loop_seconds(self.latency)
+        natural = next_event + clock.loop_seconds(self.latency)
+        return min(natural, clock.loop_time_at(min(self._ends_at, self._max_time)))

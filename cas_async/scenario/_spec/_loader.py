@@ -107,6 +107,11 @@ class RunConfig:
             :mod:`cas_async.scenario._processes._partition`). Results do not depend on it.
         window_limit: across processes, wall seconds the world waits for a window
             (or a worker's start) before it fails the run, naming who it waited for.
+        credit: on virtual time with a latency, simulated seconds the robots run
+            past the instant the run is decided (completed, or every robot
+            stopped), unobserved, before they stop, in one process as in many; and
+            across processes, how far the workers may run ahead of what the world
+            has observed. ``None``: ten latencies (see :attr:`Scenario.credit`).
     """
 
     seed: int = setting(0, ge=0, doc="seed of the run's random generator")
@@ -136,6 +141,13 @@ class RunConfig:
     window_limit: float = setting(
         30.0, gt=0, le=3600, doc="across processes: wall seconds a window may take at most"
     )
+    credit: float | None = setting(
+        None,
+        gt=0,
+        le=3600,
+        doc="simulated seconds robots run past the run's end, and ahead of its observation "
+        "(default: 10 latencies)",
+    )
 
     @property
     def restart(self) -> RestartPolicy | None:
@@ -145,6 +157,8 @@ class RunConfig:
         return RestartPolicy(self.restarts, self.restart_window)
 
 
+CREDIT_LATENCIES: Final = 10
+"""``run.credit``'s default, in latencies."""
 DEFAULT_LATENCY: Final = 0.005
 """Simulated seconds of the network model when a scenario says nothing (see NetworkConfig)."""
 
@@ -245,6 +259,13 @@ class Scenario:
     faults: FaultsConfig = FaultsConfig()
     layers: Mapping[str, type[Layer]] = field(default_factory=dict)
     network: NetworkConfig = NetworkConfig()
+
+    @property
+    def credit(self) -> float:
+        """``run.credit``, or ten latencies (see :class:`RunConfig`)."""
+        if self.run.credit is not None:
+            return self.run.credit
+        return CREDIT_LATENCIES * self.network.latency
 
     def clock(self) -> Clock:
         """A new clock for a run: virtual, or scaled by ``run.time_factor``."""
@@ -457,6 +478,18 @@ def _validate(path: Path, data: dict[str, Any]) -> Scenario:
             (
                 "run.pass_objects",
                 "[faults] act on datagrams (bytes): turn pass_objects off to use them",
+            )
+        )
+    if (
+        run is not None
+        and network is not None
+        and run.credit is not None
+        and run.credit < network.latency
+    ):
+        problems.append(
+            (
+                "run.credit",
+                f"expected at least network.latency ({network.latency:g} s), got {run.credit:g}",
             )
         )
     if problems or app is None or run is None or world is None or faults is None or network is None:

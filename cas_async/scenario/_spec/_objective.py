@@ -75,6 +75,14 @@ class Watch(Protocol):
     def clock(self) -> Clock:
         """The run's clock: ``clock.now()`` is the simulated instant."""
 
+    def now(self) -> float:
+        """The instant the run observes its robots at: the sample's, while it samples.
+
+        Where :meth:`Objective.check` should look. It is ``clock.now()`` in a run whose
+        robots run here; a world process observes its workers' robots window by
+        window while its own clock stands still, so there only this is right.
+        """
+
     def changed(self, t: float) -> None:
         """Progress changed at simulated instant ``t``: the line may be redrawn."""
 
@@ -93,7 +101,7 @@ class Watch(Protocol):
 class CallbackWatch:
     """A :class:`Watch` that calls back: what a run gives its objective (internal)."""
 
-    __slots__ = ("_clock", "_environment", "changed", "completed", "exchanged")
+    __slots__ = ("_clock", "_environment", "_sampled", "changed", "completed", "exchanged")
 
     def __init__(
         self,
@@ -106,6 +114,7 @@ class CallbackWatch:
     ) -> None:
         self._environment = environment
         self._clock = clock
+        self._sampled: float | None = None  # the instant of the sample being taken
         self.changed = changed
         self.completed = completed
         self.exchanged = exchanged
@@ -119,6 +128,14 @@ class CallbackWatch:
     def clock(self) -> Clock:
         """The run's clock."""
         return self._clock
+
+    def now(self) -> float:
+        """The instant of the sample being taken, else the clock's."""
+        return self._clock.now() if self._sampled is None else self._sampled
+
+    def sampling(self, t: float | None) -> None:
+        """The runner takes a sample at ``t`` (``None``: done with it)."""
+        self._sampled = t
 
 
 class Objective(ABC):

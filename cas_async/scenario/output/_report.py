@@ -55,6 +55,7 @@ __all__ = [
 ]
 
 _STATUS_WORDS = {
+    RunStatus.STOPPED: "STOPPED (every robot stopped before the target)",
     RunStatus.INTERRUPTED: "INTERRUPTED (stopped before the target)",
     RunStatus.TIMED_OUT: "TIMED OUT (max_time reached before the target)",
     RunStatus.FAILED: "FAILED",

@@ -11,10 +11,19 @@ __all__ = ["RunProgress", "RunResult", "RunStatus"]
 
 
 class RunStatus(enum.StrEnum):
-    """How a run ended."""
+    """How a run ended (the rule, the same however the run is run: ``docs/app-contract.md``).
+
+    A run is *completed* at the instant its objective is met, whatever the robots do
+    after; *stopped* when every robot stopped (their layers' termination conditions
+    held, or ``robot.stop()``) before it; *timed out* at ``run.max_time``, or at once
+    when nothing can happen any more. Failed and interrupted runs end where that
+    happened.
+    """
 
     COMPLETED = "completed"
     """The mission's target was reached."""
+    STOPPED = "stopped"
+    """Every robot stopped before the target was reached."""
     INTERRUPTED = "interrupted"
     """Stopped by the user (Ctrl-C) before the target."""
     TIMED_OUT = "timed_out"
