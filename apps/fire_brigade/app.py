@@ -148,6 +148,17 @@ class FireBrigade:
         """Generators, then Sinks, then Transporters (spawned at random), ids from 1."""
         config = setup.config
         fleet, rng = config.transporters, setup.rng
+        reach = setup.environment.interaction_range
+        if reach is not None and config.strategy.range > reach:
+            raise ScenarioError(
+                [
+                    (
+                        "strategy.range",
+                        f"expected at most network.range ({reach:g}): no robot senses "
+                        f"farther, got {config.strategy.range:g}",
+                    )
+                ]
+            )
         stations = config.stations
         placed: list[tuple[Kind, Pose]] = [
             (Kind.GENERATOR, Pose(x, y, math.pi / 2))
@@ -193,8 +204,9 @@ class FireBrigade:
                 retries=config.messaging.retries,
                 patience=config.messaging.patience,
                 sink_search=config.strategy.sink_search,
+                reach=math.inf if reach is None else reach,
             )
-            setup.environment.add_robot(robot_id, pose, mobile=params.mobile)
+            setup.environment.add_robot(robot_id, pose, mobile=params.mobile, top_speed=fleet.speed)
             middleware = SimulatedMiddleware(
                 setup.environment,
                 robot_id,

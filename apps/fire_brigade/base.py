@@ -120,6 +120,8 @@ class Params:
         retries: times a question is asked again before the other robot counts as silent.
         patience: seconds a robot waits at a meeting point for a silent partner.
         sink_search: how a Generator finds the Sinks (see the Goal layer).
+        reach: the run's interaction range (``[network] range``): no search looks
+            farther, nor does it look past the world's diagonal (:attr:`farthest`).
     """
 
     kind: Kind
@@ -138,6 +140,7 @@ class Params:
     retries: int = 6
     patience: float = 30.0
     sink_search: SinkSearch = "everyone"
+    reach: float = math.inf
     _empty: ConstantSpeed = field(init=False, repr=False, compare=False)
     _carrying: Decelerating = field(init=False, repr=False, compare=False)
 
@@ -150,6 +153,11 @@ class Params:
     def give_up_after(self) -> float:
         """Seconds after which a question asked ``retries`` times more is given up."""
         return (self.retries + 1) * self.timeout
+
+    @property
+    def farthest(self) -> float:
+        """The widest a search goes: the world's diagonal, or the interaction range."""
+        return min(math.hypot(*self.world), self.reach)
 
     @property
     def mobile(self) -> bool:

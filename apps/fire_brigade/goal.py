@@ -20,7 +20,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Hashable, Sequence
 
 from cas_async import Message, MsgType
@@ -123,9 +122,9 @@ class Goal(BrigadeLayer):
             RuntimeError: the radius covers the world, everyone answered, and no
                 robot is a Sink.
         """
-        world = math.hypot(*self.params.world)
-        if self.radius < world:
-            self.radius = min(self.radius * self.params.search_growth, world)
+        farthest = self.params.farthest
+        if self.radius < farthest:
+            self.radius = min(self.radius * self.params.search_growth, farthest)
             await self._ask_nearby()
         elif self.waiting:  # as far as it goes: keep asking the silent ones
             self._ask(tuple(r for r in self.asked if r in self.waiting))

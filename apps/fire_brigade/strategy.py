@@ -24,7 +24,6 @@ after ``retries`` more attempts the robot asked counts as silent, like a refusal
 
 from __future__ import annotations
 
-import math
 from collections.abc import Hashable
 from dataclasses import dataclass
 
@@ -246,9 +245,8 @@ class Strategy(BrigadeLayer):
             self._carry_a_step()
         else:
             # A Generator must find a partner: look farther next time (capped at the
-            # world's diagonal, which covers everyone).
-            world = math.hypot(*self.params.world)
-            self.radius = min(self.radius * self.params.search_growth, world)
+            # world's diagonal, which covers everyone, or the interaction range).
+            self.radius = min(self.radius * self.params.search_growth, self.params.farthest)
             self._retry_later()
 
     def _carry_a_step(self) -> None:

@@ -147,6 +147,15 @@ class SpeedProfile(ABC):
         """
         return tuple(phase_starts(self.phases()))
 
+    def top_speed(self) -> float:
+        """The fastest this profile ever goes: a phase's start, or a finite phase's end."""
+        fastest = 0.0
+        for phase in self.phases():
+            fastest = max(fastest, phase.speed)
+            if math.isfinite(phase.duration):
+                fastest = max(fastest, phase.speed_at(phase.duration))
+        return fastest
+
     def speed_at(self, t: float) -> float:
         """Speed ``t >= 0`` seconds after the reference instant."""
         _check_time("t", t)

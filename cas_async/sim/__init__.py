@@ -8,7 +8,9 @@ For simulation authors (a scenario's application builds its robots with these):
 * :class:`SimulatedMiddleware` and :class:`SimulatedHands`: the robot's
   :class:`~cas_async.Middleware` and :class:`~cas_async.Hands` in an Environment;
 * :class:`Motion`, :class:`Phase`, :func:`closing_time`: the closed-form motion
-  of a robot that rotates in place and drives straight under a speed profile.
+  of a robot that rotates in place and drives straight under a speed profile;
+* :class:`RangedTransport`: a simulated radio's reach: datagrams to robots beyond
+  the Environment's interaction range are lost, and counted.
 
 Nothing here knows any application: profiles describe physics, and the
 application decides when to change them. The vocabulary robotic layers share
@@ -23,6 +25,7 @@ from ._environment import Environment
 from ._item_events import ItemEvent, ItemEventKind
 from ._items import ItemLedger
 from ._kinematics import Motion, check_turn_rate
+from ._radio import RangedTransport
 from ._simulated import SimulatedHands, SimulatedMiddleware
 
 __all__ = [
@@ -32,6 +35,7 @@ __all__ = [
     "ItemLedger",
     "Motion",
     "Phase",
+    "RangedTransport",
     "SimulatedHands",
     "SimulatedMiddleware",
     "check_phases",

@@ -34,6 +34,7 @@ class RobotEntry:
     sent: int = 0  # items sent so far, and answers given: their order within an instant
     seen: Motion | None = None  # with a latency: the motion the others see
     seen_since: float = -math.inf
+    top_speed: float | None = None  # the fastest it may translate (None: unbounded)
 
     def travelled(self, t: float) -> float:
         """Total distance translated up to instant ``t``."""

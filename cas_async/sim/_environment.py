@@ -26,6 +26,14 @@ robot does with a neighbour's last broadcast). The motions seen change at their
 instants in a fixed order (see :mod:`cas_async._time._deliveries`), so what a robot
 senses does not depend on which robots share its process. Item hand-overs take
 the latency too (see :meth:`hand_over`).
+
+With an ``interaction_range`` (``R``: the furthest a robot senses and its messages
+and hands reach), a range query wider than ``R``, or a hand-over reaching farther,
+is an error naming the range, and :meth:`in_range` says whether one robot reaches
+another (what a simulated radio asks of every datagram). A robot may declare its
+``top_speed``: no motion of it may go faster. Together they bound where a robot
+can act on another, which is what lets a run across processes hold and watch only
+the robots near its own.
 """
 
 from __future__ import annotations
@@ -57,6 +65,9 @@ __all__ = ["Environment"]
 # coordinates' magnitude: rounding, not teleporting.
 _START_TOLERANCE: Final = 1e-9
 
+# How much faster than its top speed a motion may seem: rounding, not speeding.
+_SPEED_TOLERANCE: Final = 1 + 1e-9
+
 # Below this many robots a range query evaluates everyone: numpy over a few dozen
 # rows costs less than collecting them from the grid's cells.
 _GRID_FROM: Final = 64
@@ -77,10 +88,13 @@ class Environment(Handovers):
             and an item handed over arrives (see the module docs); 0: at once.
         clock: the robots' clock (needed with a latency: it says when an instant
             comes on the event loop).
+        interaction_range: the furthest a robot senses and its messages and hands
+            reach (``None``: no limit; see the module docs).
 
     Raises:
         ValueError: ``cell_size`` is not a finite number > 0, ``latency`` is not a
-            finite number >= 0, or a latency comes without a clock.
+            finite number >= 0, a latency comes without a clock, or
+            ``interaction_range`` is not a finite number > 0.
     """
 
     def __init__(
@@ -89,6 +103,7 @@ class Environment(Handovers):
         cell_size: float | None = None,
         latency: float = 0.0,
         clock: Clock | None = None,
+        interaction_range: float | None = None,
     ) -> None:
         if cell_size is not None and not (math.isfinite(cell_size) and cell_size > 0):
             raise ValueError(f"cell_size must be a finite number > 0, got {cell_size!r}")
@@ -96,6 +111,14 @@ class Environment(Handovers):
             raise ValueError(f"latency must be a finite number >= 0, got {latency!r}")
         if latency > 0 and clock is None:
             raise ValueError("an Environment with a latency needs the robots' clock")
+        if interaction_range is not None and not (
+            math.isfinite(interaction_range) and interaction_range > 0
+        ):
+            raise ValueError(
+                f"interaction_range must be a finite number > 0, got {interaction_range!r}"
+            )
+        self.interaction_range = interaction_range
+        """The furthest a robot senses and reaches (``None``: no limit)."""
         self.latency = latency
         """Simulated seconds before others see a motion, and a handed item arrives."""
         self._clock = clock
@@ -152,22 +175,35 @@ class Environment(Handovers):
         """Every robot's id, in the order they were added."""
         return tuple(self._robots)
 
-    def add_robot(self, robot_id: RobotId, pose: Pose, *, mobile: bool = True) -> None:
+    def add_robot(
+        self, robot_id: RobotId, pose: Pose, *, mobile: bool = True, top_speed: float | None = None
+    ) -> None:
         """Places a new robot, standing at ``pose``.
 
         Args:
             robot_id: unique among this environment's robots.
             pose: where it stands.
             mobile: ``False`` for a robot that can never move or turn.
+            top_speed: the fastest the robot can translate (distance units per
+                second); no motion of it may be faster. ``None``: unbounded; an
+                immobile robot's is 0.
 
         Raises:
-            ConfigurationError: ``robot_id`` is already present.
+            ConfigurationError: ``robot_id`` is already present, or ``top_speed`` is
+                not a finite number >= 0.
         """
         if robot_id in self._robots:
             raise ConfigurationError(f"robot {robot_id} is already in the environment")
+        if top_speed is not None and not (math.isfinite(top_speed) and top_speed >= 0):
+            raise ConfigurationError(
+                f"robot {robot_id}: top_speed must be a finite number >= 0, got {top_speed!r}"
+            )
         motion = Motion.standing(pose)
         index = len(self._robots)
-        self._robots[robot_id] = RobotEntry(index, mobile, motion, -math.inf, seen=motion)
+        self._robots[robot_id] = RobotEntry(
+            index, mobile, motion, -math.inf, seen=motion,
+            top_speed=top_speed if mobile else 0.0,
+        )  # fmt: skip
         self._table.append(-math.inf, motion)
         if self._seen is not None:
             self._seen.append(-math.inf, motion)
@@ -267,6 +303,16 @@ class Environment(Handovers):
             )
         if not robot.mobile and motion.end != motion.start:
             raise SimulationError(f"robot {robot_id} is immobile: it cannot move or turn")
+        top = robot.top_speed
+        if (
+            top is not None
+            and motion.profile is not None
+            and motion.profile.top_speed() > top * _SPEED_TOLERANCE
+        ):
+            raise SimulationError(
+                f"robot {robot_id}: a motion at up to {motion.profile.top_speed():g} units/s, "
+                f"faster than its top speed of {top:g} (Environment.add_robot)"
+            )
         here = robot.motion.pose_at(start_time - robot.since)
         scale = _START_TOLERANCE * max(1.0, abs(here.x), abs(here.y))
         if abs(motion.start.x - here.x) > scale or abs(motion.start.y - here.y) > scale:
@@ -343,6 +389,10 @@ class Environment(Handovers):
         self.start_motion(robot_id, Motion.standing(pose), t)
         return pose
 
+    def top_speed(self, robot_id: RobotId) -> float | None:
+        """The fastest the robot may translate (see :meth:`add_robot`); ``None``: unbounded."""
+        return self._robot(robot_id).top_speed
+
     def motion_of(self, robot_id: RobotId) -> tuple[Motion, float]:
         """The robot's current motion and the instant it started (``-inf``: always)."""
         robot = self._robot(robot_id)
@@ -389,11 +439,17 @@ class Environment(Handovers):
         Raises:
             UnknownRobotError: no such robot.
             SimulationError: ``radius`` is negative or NaN (``inf`` means everyone),
-                or ``t`` is NaN.
+                or wider than the interaction range; or ``t`` is NaN.
         """
         index = self._robot(robot_id).index
         if not radius >= 0:
             raise SimulationError(f"radius must be >= 0, got {radius!r}")
+        limit = self.interaction_range
+        if limit is not None and radius > limit:
+            raise SimulationError(
+                f"robot {robot_id} asked for the robots within {radius:g}; this run's "
+                f"interaction range is {limit:g} ([network] range): ask within it"
+            )
         check_instant(t)
         seen = self._seen
         here = self._table.position(index, t)  # the asker where it is
@@ -412,6 +468,29 @@ class Environment(Handovers):
             xy = seen.positions_of(t, rows)
             xy[0] = here
         return nearest_first(self._row_ids()[rows], xy, xy[0], radius, 0)
+
+    def in_range(self, robot_id: RobotId, other: RobotId, t: float) -> bool:
+        """Whether ``robot_id`` reaches ``other`` at ``t``: what :meth:`within` would say.
+
+        ``other`` is within the interaction range of ``robot_id`` (inclusive), the
+        asker where it is and the other where it is seen (with a latency), with the
+        very arithmetic of :meth:`within`: a datagram reaches exactly the robots a
+        range query would list. Always true without an interaction range.
+
+        Raises:
+            UnknownRobotError: either robot is not in the environment.
+            SimulationError: ``t`` is NaN.
+        """
+        limit = self.interaction_range
+        index, there = self._robot(robot_id).index, self._robot(other).index
+        if limit is None:
+            return True
+        check_instant(t)
+        rows = np.array((index, there), dtype=np.intp)
+        seen = self._seen
+        xy = (self._table if seen is None else seen).positions_of(t, rows)
+        xy[0] = self._table.position(index, t)  # the asker where it is
+        return bool(nearest_first(self._row_ids()[rows], xy, xy[0], limit, 0).ids.size)
 
     def _near(self, index: int, here: tuple[float, float], radius: float) -> set[int] | None:
         """Rows that may be within ``radius`` of row ``index``, at ``here``, itself left out.

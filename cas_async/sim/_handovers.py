@@ -36,6 +36,7 @@ class Handovers:
     """
 
     latency: float
+    interaction_range: float | None
     _robots: dict[RobotId, RobotEntry]
     _clock: Clock | None
     _items: ItemLedger
@@ -45,6 +46,17 @@ class Handovers:
 
     def _robot(self, robot_id: RobotId) -> RobotEntry:
         raise NotImplementedError  # the Environment's
+
+    def _check_reach(self, giver: RobotId, reach: float) -> None:
+        """Refuses a negative or NaN reach, and one beyond the interaction range."""
+        if not reach >= 0:
+            raise SimulationError(f"reach must be >= 0, got {reach!r}")
+        limit = self.interaction_range
+        if limit is not None and reach > limit:
+            raise SimulationError(
+                f"robot {giver} hands an item over a reach of {reach:g}, beyond this run's "
+                f"interaction range of {limit:g} ([network] range): nothing reaches farther"
+            )
 
     def pose_at(self, robot_id: RobotId, t: float) -> Pose:
         """The robot's pose at instant ``t`` (the Environment's)."""
@@ -82,8 +94,7 @@ class Handovers:
         """
         self._robot(giver)
         self._robot(receiver)
-        if not reach >= 0:
-            raise SimulationError(f"reach must be >= 0, got {reach!r}")
+        self._check_reach(giver, reach)
         if not math.isfinite(t):  # before evaluating positions at it
             raise SimulationError(f"a hand-over's t must be a finite number, got {t!r}")
         here, there = self.pose_at(giver, t), self.pose_at(receiver, t)
@@ -124,8 +135,7 @@ class Handovers:
             self.hand_over(item, giver, receiver, t, reach=reach)
             return
         self._robot(receiver)
-        if not reach >= 0:
-            raise SimulationError(f"reach must be >= 0, got {reach!r}")
+        self._check_reach(giver, reach)
         if not math.isfinite(t):
             raise SimulationError(f"a hand-over's t must be a finite number, got {t!r}")
         self._items.send(item, giver, receiver, t)

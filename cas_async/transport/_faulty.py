@@ -45,10 +45,10 @@ from .._core._transport_contract import DatagramSink, Endpoint, Transport
 from .._errors import RobotStateError, UnknownRobotError
 from .._time._clock import Clock
 from .._types import RobotId
-from ._wrapping import WrappingEndpoint
+from ._wrapping import WrappingEndpoint, WrappingTransport
 
 if TYPE_CHECKING:
-    from .._wire._presence import PresenceSeal
+    pass
 
 __all__ = ["Faults", "FaultyTransport"]
 
@@ -241,7 +241,7 @@ class FaultyEndpoint(WrappingEndpoint):
 
 
 @final
-class FaultyTransport(Transport):
+class FaultyTransport(WrappingTransport):
     """Wraps ``inner`` so that every datagram sent through it meets ``faults``.
 
     Args:
@@ -269,27 +269,13 @@ class FaultyTransport(Transport):
     ) -> None:
         if not (math.isfinite(hold) and hold >= 0):
             raise ValueError(f"hold must be a finite number of seconds >= 0, got {hold!r}")
-        self.inner = inner
+        super().__init__(inner)
         self.faults = faults
         self.seed = seed
         self.clock = clock
         self.hold = float(hold)
         self._rngs: dict[RobotId, random.Random] = {}
         self._stats = dict.fromkeys(_STATS, 0)
-
-    @property
-    def supports_virtual_time(self) -> bool:  # type: ignore[override] # read-only here
-        """As the inner transport: the faults themselves only use loop timers."""
-        return self.inner.supports_virtual_time
-
-    @property
-    def authenticated(self) -> bool:
-        """The inner transport's flag: an authenticating wrapper outside sets it there."""
-        return self.inner.authenticated
-
-    @authenticated.setter
-    def authenticated(self, value: bool) -> None:
-        self.inner.authenticated = value
 
     def random_for(self, robot_id: RobotId) -> random.Random:
         """The generator that decides the faults of ``robot_id``'s datagrams.
@@ -301,10 +287,6 @@ class FaultyTransport(Transport):
         if rng is None:
             rng = self._rngs[robot_id] = random.Random(f"{self.seed}/{robot_id}")
         return rng
-
-    def require_proof(self, seal: PresenceSeal) -> None:
-        """As the inner transport: membership is the inner transport's."""
-        self.inner.require_proof(seal)
 
     @property
     def stats(self) -> dict[str, int]:

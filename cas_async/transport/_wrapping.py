@@ -1,4 +1,4 @@
-"""An endpoint that wraps another's: the base of the faulty and authenticated transports.
+"""Transports that wrap another: the bases of the faulty, authenticated and ranged ones.
 
 A wrapping transport opens an inner endpoint per robot and hands the robot its own
 endpoint around it. Where the robot is, whom it knows and whether it hears of
@@ -10,10 +10,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from .._core._transport_contract import Endpoint
+from .._core._transport_contract import Endpoint, Transport
 from .._types import Address, RobotId
+from .._wire._presence import PresenceSeal
 
-__all__ = ["WrappingEndpoint"]
+__all__ = ["WrappingEndpoint", "WrappingTransport"]
 
 
 class WrappingEndpoint(Endpoint):
@@ -47,3 +48,31 @@ class WrappingEndpoint(Endpoint):
 
     def close(self) -> None:
         self._inner.close()
+
+
+class WrappingTransport(Transport):
+    """A transport around ``inner``: membership, virtual time and proofs are the inner one's.
+
+    Subclasses open the inner transport's endpoint in :meth:`open` and wrap it.
+    """
+
+    def __init__(self, inner: Transport) -> None:
+        self.inner = inner
+
+    @property
+    def supports_virtual_time(self) -> bool:  # type: ignore[override] # read-only here
+        """As the inner transport."""
+        return self.inner.supports_virtual_time
+
+    @property
+    def authenticated(self) -> bool:
+        """The inner transport's flag: an authenticating wrapper outside sets it there."""
+        return self.inner.authenticated
+
+    @authenticated.setter
+    def authenticated(self, value: bool) -> None:
+        self.inner.authenticated = value
+
+    def require_proof(self, seal: PresenceSeal) -> None:
+        """As the inner transport: membership is the inner transport's."""
+        self.inner.require_proof(seal)

@@ -44,7 +44,7 @@ def placed(scenario: Scenario, world: World | None = None) -> tuple[Placement, E
     """The placement of ``scenario``'s mission, built as a run builds it; the Environment."""
     clock = scenario.clock()
     environment = scenario.environment(clock)
-    transport = transport_for(scenario, clock, None, world)
+    transport = transport_for(scenario, clock, None, world, environment)
     mission = scenario.app.build(scenario.setup(environment, clock, transport))
     objective = objective_of(mission, scenario.app.name, "item")
     sampling = Sampling(

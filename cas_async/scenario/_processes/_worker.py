@@ -42,7 +42,7 @@ from ..._wire._swarm_key import SwarmKey
 from ...transport._faulty import FaultyTransport
 from ...transport.zenoh import import_zenoh, loopback_config
 from .._spec._loader import Scenario, scenario_from_data
-from .._spec._run_transport import faulty
+from .._spec._run_transport import faulty, ranged
 from ._control import (
     SUSPECT_LIMIT,
     WORLD,
@@ -176,7 +176,8 @@ class _Worker:
             environment,
             flush=None if virtual else self._schedule_flush,
         )
-        transport = self._wire = faulty(scenario, network, clock)
+        self._wire = faulty(scenario, network, clock)
+        transport = ranged(self._wire, environment, clock)
         mission = scenario.app.build(scenario.setup(environment, clock, transport))
         environment.set_local(own, network)
         self._recorder = Recorder(environment, own)

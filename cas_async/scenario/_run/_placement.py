@@ -130,10 +130,16 @@ class Placement(Protocol):
 
 
 def transport_for(
-    scenario: Scenario, clock: Clock, key: SwarmKey | None, world: World | None
+    scenario: Scenario,
+    clock: Clock,
+    key: SwarmKey | None,
+    world: World | None,
+    environment: Environment,
 ) -> Transport:
     """What the application builds its robots with: the run's, or copies a world never starts."""
-    return run_transport(scenario, clock, key) if world is None else world.transport()
+    if world is not None:
+        return world.transport()
+    return run_transport(scenario, clock, key, environment)
 
 
 def place(

@@ -105,7 +105,7 @@ class ScenarioRun:
         environment = scenario.environment(clock)
         self._complete = asyncio.Event()
         self._listeners = Listeners()
-        transport = transport_for(scenario, clock, key, world)
+        transport = transport_for(scenario, clock, key, world, environment)
         with while_building():
             setup = scenario.setup(environment, clock, transport)
             self._mission = mission = scenario.app.build(setup)

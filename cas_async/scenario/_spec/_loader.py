@@ -177,10 +177,19 @@ class NetworkConfig:
             effect at once, in one process only. Over UDP or Zenoh (scaled real
             time) datagrams take the real network's own latency; the Environment's
             motions and items keep the model's.
+        range: the interaction range: the furthest, in distance units, a robot senses
+            (range queries) and its messages and hands reach. A datagram to a robot
+            beyond it is lost (``transport.out_of_range``), a wider query or reach is
+            an error naming it. It lets a run across processes hold and watch only
+            the robots near each worker's own (see docs/processes.md). ``None``: no
+            limit.
     """
 
     latency: float = setting(
         DEFAULT_LATENCY, ge=0, le=60, doc="simulated seconds from one robot to another"
+    )
+    range: float | None = setting(
+        None, gt=0, le=1e9, doc="the furthest a robot senses, and its messages reach (no limit)"
     )
 
 
@@ -272,8 +281,9 @@ class Scenario:
         return VirtualClock() if self.run.virtual else ScaledClock(self.run.time_factor)
 
     def environment(self, clock: Clock) -> Environment:
-        """A new, empty Environment for a run on ``clock``, with the ``[network]`` latency."""
-        return Environment(latency=self.network.latency, clock=clock)
+        """A new, empty Environment for a run on ``clock``, with the ``[network]`` model."""
+        network = self.network
+        return Environment(latency=network.latency, clock=clock, interaction_range=network.range)
 
     def setup(
         self, environment: Environment, clock: Clock, transport: Transport

@@ -6,6 +6,8 @@ from ..._core._transport_contract import Transport
 from ..._errors import ConfigurationError
 from ..._time._clock import Clock
 from ..._wire._swarm_key import SwarmKey
+from ...sim._environment import Environment
+from ...sim._radio import RangedTransport
 from ...transport._authenticated import AuthenticatedTransport
 from ...transport._faulty import FaultyTransport
 from ...transport._memory import MemoryTransport
@@ -13,7 +15,7 @@ from ...transport._udp import UdpTransport
 from ...transport.zenoh import ZenohTransport
 from ._loader import Scenario
 
-__all__ = ["check_key", "fault_counts", "faulty", "run_transport"]
+__all__ = ["check_key", "fault_counts", "faulty", "ranged", "run_transport"]
 
 
 def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
@@ -25,8 +27,10 @@ def check_key(scenario: Scenario, key: SwarmKey | None) -> None:
         )
 
 
-def run_transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Transport:
-    """The run's transport: the ``[faults]`` on the wire, if any, and signed with ``key``."""
+def run_transport(
+    scenario: Scenario, clock: Clock, key: SwarmKey | None, environment: Environment
+) -> Transport:
+    """The run's transport: its ``[faults]`` and range, if any, and signed with ``key``."""
     run = scenario.run
     check_key(scenario, key)
     transport: Transport
@@ -43,8 +47,19 @@ def run_transport(scenario: Scenario, clock: Clock, key: SwarmKey | None) -> Tra
         transport = ZenohTransport()
     else:
         transport = UdpTransport()
-    transport = faulty(scenario, transport, clock)
+    transport = ranged(faulty(scenario, transport, clock), environment, clock)
     return transport if key is None else AuthenticatedTransport(transport, key)
+
+
+def ranged(transport: Transport, environment: Environment, clock: Clock) -> Transport:
+    """``transport`` losing datagrams beyond the interaction range, if the run has one.
+
+    Outside the faults: a datagram out of range is lost before any fault is drawn
+    for it (each robot draws its faults in the order of its own sends).
+    """
+    if environment.interaction_range is None:
+        return transport
+    return RangedTransport(transport, environment, clock)
 
 
 def faulty(scenario: Scenario, transport: Transport, clock: Clock) -> Transport:
@@ -58,5 +73,7 @@ def faulty(scenario: Scenario, transport: Transport, clock: Clock) -> Transport:
 
 def fault_counts(transport: Transport) -> dict[str, int] | None:
     """What the ``[faults]`` on ``transport``'s wire did so far, or ``None`` without faults."""
-    wire = transport.inner if isinstance(transport, AuthenticatedTransport) else transport
+    wire = transport
+    while isinstance(wire, AuthenticatedTransport | RangedTransport):
+        wire = wire.inner
     return wire.stats if isinstance(wire, FaultyTransport) else None
