@@ -207,6 +207,9 @@ class FireBrigade:
                 reach=math.inf if reach is None else reach,
             )
             setup.environment.add_robot(robot_id, pose, mobile=params.mobile, top_speed=fleet.speed)
+            groups[kind.name.title()].append(robot_id)
+            if not setup.holds(robot_id):
+                continue  # another process runs it: its place and its seed are drawn all the same
             middleware = SimulatedMiddleware(
                 setup.environment,
                 robot_id,
@@ -223,7 +226,6 @@ class FireBrigade:
                 action(params, middleware, hands),
             ]
             robots.append(setup.robot(robot_id, layers, messages=MESSAGES))
-            groups[kind.name.title()].append(robot_id)
         generators = stations.placed(stations.generators)
         sinks = stations.placed(stations.sinks)
         on_lines = LineShare(groups["Transporter"], segments(generators, sinks), generators + sinks)

@@ -96,7 +96,9 @@ class GatheringApp:
         plan, drive = setup.layer(PLAN), setup.layer(DRIVE)  # the scenario's [layers], or ours
         robots = []
         for robot_id, home in homes.items():
-            setup.environment.add_robot(robot_id, Pose(*home, 0.0))
+            setup.environment.add_robot(robot_id, Pose(*home, 0.0), top_speed=fleet.speed)
+            if not setup.holds(robot_id):
+                continue  # another process runs it (a run across processes)
             middleware = SimulatedMiddleware(
                 setup.environment,
                 robot_id,

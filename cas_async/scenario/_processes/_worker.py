@@ -41,6 +41,7 @@ from ..._time._virtual_loop import VirtualTimeLoop
 from ..._wire._swarm_key import SwarmKey
 from ...transport._faulty import FaultyTransport
 from ...transport.zenoh import import_zenoh, loopback_config
+from .._spec._layers import check_built
 from .._spec._loader import Scenario, scenario_from_data
 from .._spec._run_transport import faulty, ranged
 from ._control import (
@@ -108,13 +109,17 @@ def run_worker(
         )
     worker = _Worker(scenario, welcome, connect, key, tuple(listen))
     # As in a run in one process, the collector's youngest generation is sized to the
-    # robots built here while they run: every robot of the run (see _gc_policy).
-    # Without it a worker of scale_2500 holding all the robots took 47 CPU s, not 38.
-    with young_generation_for(sum(map(len, welcome.shares))):
-        if scenario.run.virtual:
-            with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
-                return runner.run(worker.run())
-        return run(worker.run())
+    # robots built here while they run: its share (see _gc_policy). Without it a worker
+    # of scale_2500 holding all the robots took 47 CPU s, not 38.
+    try:
+        with young_generation_for(len(welcome.shares[welcome.index])):
+            if scenario.run.virtual:
+                with asyncio.Runner(loop_factory=VirtualTimeLoop) as runner:
+                    return runner.run(worker.run())
+            return run(worker.run())
+    except ConfigurationError as exc:  # the app could not build its robots here
+        asyncio.run(refuse(connect, key, welcome, str(exc)))
+        raise
 
 
 class _Worker:
@@ -178,10 +183,12 @@ class _Worker:
         )
         self._wire = faulty(scenario, network, clock)
         transport = ranged(self._wire, environment, clock)
-        mission = scenario.app.build(scenario.setup(environment, clock, transport))
+        mission = scenario.app.build(scenario.setup(environment, clock, transport, frozenset(own)))
+        mine = [robot for robot in mission.robots if robot.robot_id in own]  # holds(), or not
+        check_built(getattr(scenario.app, "stack", ()), scenario.layers, mine)
         environment.set_local(own, network)
         self._recorder = Recorder(environment, own)
-        self._swarm = swarm = Swarm(r for r in mission.robots if r.robot_id in own)
+        self._swarm = swarm = Swarm(mine)
         zenoh = import_zenoh()
         config = loopback_config(
             mode="peer" if self._listen else "client",

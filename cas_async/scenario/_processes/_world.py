@@ -164,7 +164,7 @@ class World:
         Raises:
             ConfigurationError: more workers than robots, or the app's partition is wrong.
         """
-        ids = [robot.robot_id for robot in mission.robots]
+        ids = list(environment.robot_ids)  # every robot, built here or not (holds())
         try:
             self._shares = partition(
                 environment, ids, self._workers, self._scenario.run.partition, self._scenario.app

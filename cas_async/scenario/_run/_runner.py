@@ -28,6 +28,7 @@ import numpy.typing as npt
 from ..._core._gc_policy import while_building, young_generation_for
 from ..._core._swarm import Swarm
 from ..._errors import ConfigurationError, LayerError
+from ..._types import RobotId
 from ..._wire._swarm_key import SwarmKey
 from ...sim._environment import Environment
 from .._processes._world import World
@@ -107,7 +108,9 @@ class ScenarioRun:
         self._listeners = Listeners()
         transport = transport_for(scenario, clock, key, world, environment)
         with while_building():
-            setup = scenario.setup(environment, clock, transport)
+            # A world runs no robot: its workers do (an app that asks holds() builds none).
+            share = None if world is None else frozenset[RobotId]()
+            setup = scenario.setup(environment, clock, transport, share)
             self._mission = mission = scenario.app.build(setup)
         try:
             check_built(getattr(scenario.app, "stack", ()), scenario.layers, mission.robots)

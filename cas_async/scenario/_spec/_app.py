@@ -108,6 +108,9 @@ class SimulationSetup(Generic[C]):
         layers: the classes the scenario's ``[layers]`` put in place of the
             app's own, by slot name (checked: each subclasses its slot's base);
             read them with :meth:`layer`.
+        share: the robots this process runs, when it runs only some (a worker of a
+            run across processes; none for the world); ``None``: every robot. Ask
+            with :meth:`holds`.
     """
 
     config: C
@@ -118,6 +121,20 @@ class SimulationSetup(Generic[C]):
     rng: np.random.Generator
     restart: RestartPolicy | None = None
     layers: Mapping[str, type[Layer]] = field(default_factory=dict)
+    share: frozenset[RobotId] | None = None
+
+    def holds(self, robot_id: RobotId) -> bool:
+        """Whether this process runs robot ``robot_id``: build its layers and robot only then.
+
+        Across processes each worker runs a share of the robots, and the world none.
+        An app builds every robot's place and draws every random number for every
+        robot, in the same order, held or not (add it to :attr:`environment`, draw its
+        seed), and skips only what draws nothing: its layers, its middleware, its
+        :class:`~cas_async.Robot`. A worker then holds only its own robots, and the
+        world none. An app that never asks builds every robot everywhere, as before:
+        correct, slower. In one process every robot is held.
+        """
+        return self.share is None or robot_id in self.share
 
     def layer(self, slot: LayerSlot[L], default: type[L] | None = None) -> type[L]:
         """The class to build ``slot``'s level with: the scenario's, else ``default`` or the slot's.

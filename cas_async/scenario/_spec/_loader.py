@@ -57,6 +57,7 @@ from ..._core._layer import Layer
 from ..._core._supervision import RestartPolicy
 from ..._core._transport_contract import Transport
 from ..._time._clock import Clock, ScaledClock, VirtualClock
+from ..._types import RobotId
 from ...sim._environment import Environment
 from ...transport._faulty import Faults
 from ._app import SimulationApp, SimulationSetup
@@ -286,9 +287,16 @@ class Scenario:
         return Environment(latency=network.latency, clock=clock, interaction_range=network.range)
 
     def setup(
-        self, environment: Environment, clock: Clock, transport: Transport
+        self,
+        environment: Environment,
+        clock: Clock,
+        transport: Transport,
+        share: frozenset[RobotId] | None = None,
     ) -> SimulationSetup[Any]:
-        """What the app builds with: this scenario's settings, seed, restart policy and layers."""
+        """What the app builds with: this scenario's settings, seed, restart policy and layers.
+
+        ``share``: the robots this process runs (see :meth:`SimulationSetup.holds`).
+        """
         return SimulationSetup(
             self.config,
             (self.world.width, self.world.height),
@@ -298,6 +306,7 @@ class Scenario:
             np.random.default_rng(self.run.seed),
             self.run.restart,
             layers=self.layers,
+            share=share,
         )
 
 
