@@ -55,6 +55,7 @@ TARGET_CASE: Final = ("scale_2500", 2)
 DISTRIBUTION_KEYS: Final = frozenset({
     "workers", "worker_waited_s", "worker_waited_grant_s", "world_observing_s",
     "cross_process_effects", "window_busy_mean_s", "window_busy_max_s", "windows",
+    "dependency_set_mean", "watched_robots_mean",
 })  # fmt: skip
 """``results.json`` ``extra`` figures that describe the distribution, not the run."""
 

@@ -36,6 +36,7 @@ MACHINE: Final = frozenset({"wall_time"})
 DISTRIBUTION: Final = frozenset({
     "workers", "worker_waited_s", "worker_waited_grant_s", "world_observing_s",
     "cross_process_effects", "window_busy_mean_s", "window_busy_max_s", "windows",
+    "dependency_set_mean", "watched_robots_mean",
 })  # fmt: skip
 """Keys of ``results.json``'s ``extra`` that describe how the run was spread (across
 processes, windows also end where the world's credit caps them), not the run."""

@@ -35,6 +35,7 @@ class RobotEntry:
     seen: Motion | None = None  # with a latency: the motion the others see
     seen_since: float = -math.inf
     top_speed: float | None = None  # the fastest it may translate (None: unbounded)
+    hidden: bool = False  # another process's robot this one does not watch (see hide)
 
     def travelled(self, t: float) -> float:
         """Total distance translated up to instant ``t``."""

@@ -263,6 +263,58 @@ class Environment(Handovers):
         self._items = ItemLedger(partial=True)
         self._courier = courier
 
+    def hide(self, robot_id: RobotId) -> None:
+        """Another process's robot is out of this one's sight: it is nowhere, until shown.
+
+        For a run across processes with an interaction range: a worker watches only the
+        robots of the others that can come within range of its own. A hidden robot is
+        in no range query and in range of nobody (its position is NaN); the motions
+        it is seen to start meanwhile are kept (:meth:`see_motion`), not placed.
+
+        Raises:
+            UnknownRobotError: no such robot.
+            SimulationError: the robot is this process's own.
+        """
+        robot = self._robot(robot_id)
+        if robot.local:
+            raise SimulationError(f"robot {robot_id} runs here: only another's can be hidden")
+        if robot.hidden:
+            return
+        robot.hidden = True
+        self._table.blank(robot.index)
+        if self._seen is not None:
+            self._seen.blank(robot.index)
+        if self._grid is not None:
+            self._grid.remove(robot.index)
+        self._cache = None
+
+    def show(self, robot_id: RobotId) -> None:
+        """A hidden robot is watched again: where the latest motion it was seen to start says.
+
+        Raises:
+            UnknownRobotError: no such robot.
+        """
+        robot = self._robot(robot_id)
+        if not robot.hidden:
+            return
+        robot.hidden = False
+        self._table.set(robot.index, robot.since, robot.motion)
+        if self._seen is not None:
+            assert robot.seen is not None
+            self._seen.set(robot.index, robot.seen_since, robot.seen)
+            motion = robot.seen
+        else:
+            motion = robot.motion
+        if self._grid is not None:
+            self._grid.place(
+                robot.index, motion.start.x, motion.start.y, motion.end.x, motion.end.y
+            )
+        self._cache = None
+
+    def is_hidden(self, robot_id: RobotId) -> bool:
+        """Whether the robot is out of sight (see :meth:`hide`)."""
+        return self._robot(robot_id).hidden
+
     def is_mobile(self, robot_id: RobotId) -> bool:
         """Whether the robot can move (see :meth:`add_robot`)."""
         return self._robot(robot_id).mobile
@@ -362,9 +414,12 @@ class Environment(Handovers):
         if not robot.local:  # it is here what it is seen to be: no more is known of it
             robot.odometer = robot.travelled(start_time)
             robot.motion, robot.since = motion, start_time
-            self._table.set(robot.index, start_time, motion)
-            self._cache = None
+            if not robot.hidden:
+                self._table.set(robot.index, start_time, motion)
+                self._cache = None
         robot.seen, robot.seen_since = motion, start_time
+        if robot.hidden:  # kept for when it is shown again
+            return
         seen.set(robot.index, start_time, motion)
         if self._grid is not None:
             self._grid.place(

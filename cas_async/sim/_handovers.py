@@ -222,11 +222,13 @@ class Handovers:
         assert seen is not None
         x, y = seen.position(self._robot(giver).index, t)
         distance = math.hypot(here.x - x, here.y - y)
-        if distance > reach:
+        # Not "distance > reach": a giver another process does not watch (a run across
+        # processes with an interaction range) is nowhere, NaN, and out of reach. The
+        # message names where the receiver is, which every process knows alike.
+        if not distance <= reach:
             return (
-                f"robot {giver} at ({x!r}, {y!r}) cannot hand item {item} to robot {receiver} "
-                f"at ({here.x!r}, {here.y!r}) at {t!r}: they are {distance!r} apart, beyond "
-                f"the reach of {reach!r}"
+                f"robot {giver} cannot hand item {item} to robot {receiver} at "
+                f"({here.x!r}, {here.y!r}) at {t!r}: it is beyond the reach of {reach!r}"
             )
         return None
 

@@ -94,6 +94,11 @@ class SegmentTable:
             values += (t0, d0, phase.speed, phase.acceleration)
         self._flat[index] = values + _UNUSED * (width - len(phases))
 
+    def blank(self, index: int) -> None:
+        """Row ``index`` is nowhere: its position is NaN at every instant (a hidden robot)."""
+        self._rows[index] = (-math.inf, -math.inf, math.nan, math.nan, math.nan, math.nan, 0.0)
+        self._flat[index] = _UNUSED * self._phases.shape[1]
+
     def delete(self, index: int) -> None:
         """Removes row ``index``; later rows move up by one (order is kept)."""
         n = self._n

@@ -194,6 +194,9 @@ class Window(msgspec.Struct, frozen=True, tag="window"):
     counts: Counts
     stopped_at: Annotated[float, finite(ge=0)] | None = None
     busy: Annotated[float, finite(ge=0)] = 0.0
+    cells: list[int] = msgspec.field(default_factory=list)
+    """At an epoch's start, with an interaction range: robot, column, row of each of
+    the worker's robots (see :mod:`._halo`)."""
 
 
 class Grant(msgspec.Struct, frozen=True, tag="grant"):
@@ -248,6 +251,10 @@ class Bye(msgspec.Struct, frozen=True, tag="bye"):
     counts: Counts
     waited: float = 0.0
     waited_grant: float = 0.0
+    dependencies: float = 0.0
+    """With an interaction range: the workers it depended on, on average over its windows."""
+    watched: float = 0.0
+    """With an interaction range: the others' robots it watched, on average over its windows."""
 
 
 Control = Union[  # noqa: UP007

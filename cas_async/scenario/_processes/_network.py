@@ -11,12 +11,16 @@ once. What comes in from the other processes is scheduled the same way, so a
 robot cannot tell whether the robot it talks to shares its process.
 
 Membership is the run's: every robot of the run is known from the start (the
-world says which process runs which), none joins or leaves.
+world says which process runs which), none joins or leaves. With an interaction
+range, the worker watches only the other processes' robots that can come within
+range of its own (:meth:`ProcessNetwork.watch`, see :mod:`._halo`): the motions of
+the others are kept, not applied, until they come into sight.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+from functools import partial
 from typing import final
 
 from ..._core._transport_contract import DatagramSink, Endpoint, Transport
@@ -28,7 +32,7 @@ from ..._wire._codec import DEFAULT_MAX_DATAGRAM
 from ...sim._environment import Environment
 from ...sim._kinematics import Motion
 from ._control import Remote
-from ._observer import Observation
+from ._observer import MotionRecord, Observation
 
 __all__ = ["ProcessNetwork"]
 
@@ -111,6 +115,10 @@ class ProcessNetwork(Transport):
         self._flush = flush
         self._local: dict[RobotId, _Endpoint] = {}
         self._outgoing: list[Remote] = []
+        self._hidden: set[RobotId] = set()  # the others' robots out of sight
+        self._unseen: dict[RobotId, MotionRecord] = {}  # the latest motion of each, unapplied
+        self.applied = 0
+        """The others' motions applied so far (seen by this worker's robots)."""
         self.sent = 0
         """Effects sent to other processes so far."""
         self.received = 0
@@ -192,18 +200,51 @@ class ProcessNetwork(Transport):
         """
         if sender == self._index:
             return
-        environment, clock, latency = self._environment, self._clock, self._latency
+        clock, latency = self._clock, self._latency
         for record in observation.motions:
-            motion = Motion.from_numbers(record.numbers)
             self._at(
                 clock.loop_time_at(record.t + latency),
                 (MOTION, record.robot, record.n),
-                _seeing(environment, record.robot, motion, record.t),
+                partial(self._seen, record),
             )
         for remote in remotes:
             if self.robots.get(remote.receiver) == self._index:
                 self.received += 1
                 self._at(remote.at, (remote.kind, remote.sender, remote.n), self._effect(remote))
+
+    def _seen(self, record: MotionRecord) -> None:
+        """Another process's robot is seen to start a motion: applied, or kept if out of sight."""
+        robot = record.robot
+        if robot in self._hidden:
+            self._unseen[robot] = record  # in the order they are seen: the latest wins
+            return
+        self.applied += 1
+        self._environment.see_motion(robot, Motion.from_numbers(record.numbers), record.t)
+
+    def watch(self, visible: Iterable[RobotId]) -> None:
+        """From now on the others' robots in ``visible`` are in sight, the rest hidden.
+
+        Called between two instants (at an epoch's start, before any of its events):
+        a robot coming into sight is placed by the latest motion it was seen to start.
+        """
+        environment = self._environment
+        sight = set(visible)
+        others = {robot for robot, owner in self.robots.items() if owner != self._index}
+        for robot in sorted(others - sight - self._hidden):
+            environment.hide(robot)
+            self._hidden.add(robot)
+        for robot in sorted(self._hidden & sight):
+            self._hidden.discard(robot)
+            record = self._unseen.pop(robot, None)
+            if record is not None:  # seen to start it meanwhile: that is where it is
+                motion = Motion.from_numbers(record.numbers)
+                environment.see_motion(robot, motion, record.t)
+            environment.show(robot)
+
+    @property
+    def watched(self) -> int:
+        """How many of the others' robots are in sight now."""
+        return sum(1 for owner in self.robots.values() if owner != self._index) - len(self._hidden)
 
     def _effect(self, remote: Remote) -> Callable[[], None]:
         environment = self._environment
@@ -225,9 +266,3 @@ class ProcessNetwork(Transport):
     def _at(self, at: float, key: tuple[object, ...], action: Callable[[], None]) -> None:
         # On scaled time one that came late runs at once, counted (Deliveries.late).
         Deliveries.of().at(at, key, action)
-
-
-def _seeing(
-    environment: Environment, robot: RobotId, motion: Motion, start: float
-) -> Callable[[], None]:
-    return lambda: environment.see_motion(robot, motion, start)

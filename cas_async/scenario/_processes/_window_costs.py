@@ -33,6 +33,7 @@ class WindowCosts:
         self._busy_mean = 0.0  # per window, the workers' mean busy time: summed
         self._busy_max = 0.0  # per window, the busiest worker's: summed
         self._waited: dict[int, tuple[float, float]] = {}  # a worker -> its Bye's waits
+        self._spread: dict[int, tuple[float, float]] = {}  # a worker -> depended on, watched
 
     def flowed(self, window: Window) -> None:
         """Scaled time: a worker's records so far."""
@@ -52,6 +53,10 @@ class WindowCosts:
         """A worker's wall seconds waiting, as its :class:`~._control.Bye` says."""
         self._waited[worker] = (waited, for_grant)
 
+    def spread(self, worker: int, dependencies: float, watched: float) -> None:
+        """A worker's mean dependency set and robots watched, as its ``Bye`` says (a range)."""
+        self._spread[worker] = (dependencies, watched)
+
     def stats(self, workers: int, *, virtual: bool) -> dict[str, float | int | str]:
         """The figures of ``results.json`` (see :meth:`World.stats <._world.World.stats>`)."""
         if not virtual:
@@ -65,4 +70,15 @@ class WindowCosts:
             "world_observing_s": round(self._observing, 3),
             "window_busy_mean_s": round(self._busy_mean, 3),
             "window_busy_max_s": round(self._busy_max, 3),
+            **self._spreads(),
+        }
+
+    def _spreads(self) -> dict[str, float]:
+        """With an interaction range: how many workers each depended on, and robots it watched."""
+        spread = [value for value in self._spread.values() if value != (0.0, 0.0)]
+        if not spread:
+            return {}
+        return {
+            "dependency_set_mean": round(sum(d for d, _ in spread) / len(spread), 2),
+            "watched_robots_mean": round(sum(w for _, w in spread) / len(spread), 1),
         }

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import sys
 import time
 import traceback
@@ -61,6 +62,7 @@ from ._control import (
     next_instant,
     token_lives,
 )
+from ._halo import Halo
 from ._joining import CONNECT_WAIT, join, refuse
 from ._lost import WorkerLost, within
 from ._network import ProcessNetwork
@@ -150,6 +152,10 @@ class _Worker:
         self._swarm = Swarm(())
         self._flushing = False
         self._stopped_at: float | None = None  # when every robot here had stopped
+        self._halo: Halo | None = None  # with an interaction range: what it watches
+        self._epoch = 0  # epochs started so far (with a halo: windows end at each start)
+        self._depended = 0.0  # summed over windows: workers depended on
+        self._watched = 0.0  # summed over windows: the others' robots watched
         self._clock: Clock | None = None
         self._final: Counts | None = None  # the counts as the run ended (virtual time)
         self._waited = 0.0  # wall seconds waiting for the others and for grants
@@ -187,6 +193,10 @@ class _Worker:
         mine = [robot for robot in mission.robots if robot.robot_id in own]  # holds(), or not
         check_built(getattr(scenario.app, "stack", ()), scenario.layers, mine)
         environment.set_local(own, network)
+        limit = environment.interaction_range
+        if virtual and limit is not None:  # watch only the others' robots near its own
+            self._halo = Halo(environment, owners, self._index, limit, scenario.network.latency)
+            network.watch(self._halo.visible)
         self._recorder = Recorder(environment, own)
         self._swarm = swarm = Swarm(mine)
         zenoh = import_zenoh()
@@ -215,7 +225,7 @@ class _Worker:
             epoch = await within(self._go, scenario.run.window_limit, "the world's go")
             if virtual:
                 assert isinstance(loop, VirtualTimeLoop)
-                first_end = loop.time() + scenario.network.latency
+                first_end = min(loop.time() + scenario.network.latency, self._boundary())
                 loop.run_windows(Windows(loop, first_end, self._close, idle=self._tick))
                 self._resumed = time.perf_counter()
             elif isinstance(clock, ScaledClock):
@@ -254,7 +264,8 @@ class _Worker:
                 if failed is not None:
                     channel.send("world", Failed(failed))
                 waits = round(self._waited, 3), round(self._waited_grant, 3)
-                channel.send("world", Bye(self._final or self._counts(), *waits))
+                spread = self._spread()
+                channel.send("world", Bye(self._final or self._counts(), *waits, *spread))
             for declared in (token, world_watch):
                 if declared is not None:
                     with contextlib.suppress(Exception):
@@ -299,9 +310,12 @@ class _Worker:
         if time.monotonic() - self._counted >= COUNTS_EVERY:
             self._counted, counts = time.monotonic(), self._counts()
         busy = time.perf_counter() - self._resumed
+        halo = self._halo
+        boundary = halo is not None and end == self._boundary()
+        cells = halo.own_cells(end) if halo is not None and boundary else []
         own = Window(
             k, next_event, recorder.take(), network.take_outgoing(), counts,
-            stopped_at=self._stopped_at, busy=busy,
+            stopped_at=self._stopped_at, busy=busy, cells=cells,
         )  # fmt: skip
         channel.send(f"win/{self._index}", own)
         others = len(self._welcome.shares) - 1
@@ -326,9 +340,25 @@ class _Worker:
             return None
         for worker, peer in sorted(peers.items()):
             network.receive(worker, peer.observation, peer.remote)
+        if halo is not None:
+            if boundary:  # an epoch starts: what to watch in it (before any of its events)
+                network.watch(halo.turn([cells, *(peer.cells for peer in peers.values())]))
+                self._epoch += 1
+            self._depended += len(halo.dependencies)
+            self._watched += network.watched
         cap = self._grants.pop(k + 1)
         self._k = k + 1
-        return min(following + latency, cap)
+        return min(following + latency, cap, self._boundary())
+
+    def _boundary(self) -> float:
+        """Where the epoch under way ends (``inf`` without an interaction range)."""
+        halo = self._halo
+        return math.inf if halo is None else (self._epoch + 1) * halo.epoch
+
+    def _spread(self) -> tuple[float, float]:
+        """The workers it depended on, and the others' robots it watched: means per window."""
+        windows = max(1, self._k)
+        return self._depended / windows, self._watched / windows
 
     async def _until(self, condition: Callable[[], bool]) -> None:
         """Waits until ``condition`` holds or the run is stopped."""

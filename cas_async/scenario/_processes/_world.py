@@ -57,6 +57,7 @@ from ._control import (
     Window,
     next_instant,
 )
+from ._halo import epoch_length, top_speed
 from ._liveness import Liveness
 from ._lobby import Lobby
 from ._lost import WorkerLost, WorkerRefused
@@ -149,6 +150,7 @@ class World:
         self._pids: dict[int, int] = {}  # a worker's process id (its hello's) -> its index
         self._shares: list[list[RobotId]] = []
         self._costs = WindowCosts()  # rounds, cross-process effects, waits (see stats)
+        self._epoch = math.inf  # with an interaction range: windows end at its multiples
         self.endpoint = ""
         """Where the router listens, once started."""
 
@@ -165,6 +167,10 @@ class World:
             ConfigurationError: more workers than robots, or the app's partition is wrong.
         """
         ids = list(environment.robot_ids)  # every robot, built here or not (holds())
+        limit, scenario = environment.interaction_range, self._scenario
+        if limit is not None and scenario.run.virtual:  # the workers' epochs (see _halo)
+            latency = scenario.network.latency
+            self._epoch = epoch_length(limit, top_speed(environment), latency)
         try:
             self._shares = partition(
                 environment, ids, self._workers, self._scenario.run.partition, self._scenario.app
@@ -248,7 +254,8 @@ class World:
         latency, max_time, credit = scenario.network.latency, scenario.run.max_time, scenario.credit
         caps = {1: min(credit, max_time)}
         channel.send("all", Grant(1, caps[1]))
-        end, k = latency, 0
+        epochs = 0  # epochs started: the next starts at (epochs + 1) * self._epoch
+        end, k = min(latency, self._epoch), 0
         verdict: RunStatus | None = None
         ends_at = math.inf  # once decided: the run ends there
         while True:
@@ -273,7 +280,10 @@ class World:
                 return verdict, None  # every event before the end ran: none after it
             caps[k + 2] = min(end + credit, ends_at, max_time)
             channel.send("all", Grant(k + 2, caps[k + 2]))
-            end, k = min(following + latency, caps.pop(k + 1)), k + 1
+            if end == (epochs + 1) * self._epoch:
+                epochs += 1  # the workers turned their halos there
+            boundary = (epochs + 1) * self._epoch
+            end, k = min(following + latency, caps.pop(k + 1), boundary), k + 1
 
     async def _observe(
         self,
@@ -523,6 +533,7 @@ class World:
             case Bye(counts=counts, waited=waited, waited_grant=grant):
                 self._counts[sender] = counts
                 self._costs.waited(sender, waited, grant)
+                self._costs.spread(sender, message.dependencies, message.watched)
                 self._byes.add(sender)
                 self._liveness.said_bye(sender)
         if self._news is not None:
