@@ -170,7 +170,7 @@ MESSAGES: list[Control] = [
         Counts({"a.B": 1}, {"c.D": 2}, {"decode": 1}, {"control.replayed": 1}),
         stopped_at=12.5,
     ),
-    Grant(5, 0.75),
+    Grant(5),
     Beat(),
     Stop(),
     Failed("worker 1: boom"),
@@ -196,20 +196,20 @@ async def test_a_channel_hears_only_what_it_listens_to(run: Run) -> None:
     world, _ = run.channel(WORLD)
     worker, heard = run.channel(0)
     worker.listen("w/0")
-    world.send("w/1", Grant(1, 0.05))  # another worker's
-    world.send("w/0", Grant(2, 0.05))
+    world.send("w/1", Grant(1))  # another worker's
+    world.send("w/0", Grant(2))
     await heard_all(heard, 1, worker)
     await asyncio.sleep(0.05)
-    assert heard == [("w/0", WORLD, Grant(2, 0.05))]
+    assert heard == [("w/0", WORLD, Grant(2))]
 
 
 async def test_a_message_of_another_run_is_refused(run: Run) -> None:
     worker, heard = run.channel(0, KEY)
     worker.listen("**")
-    run.put("w", run.envelope("w", Grant(1, 0.05), run="cas_async/run/other", key=KEY))
-    run.put("w", run.envelope("w", Grant(2, 0.05), count=2, key=KEY))
+    run.put("w", run.envelope("w", Grant(1), run="cas_async/run/other", key=KEY))
+    run.put("w", run.envelope("w", Grant(2), count=2, key=KEY))
     await heard_all(heard, 2, worker)
-    assert heard == [("w", 0, Grant(2, 0.05))]
+    assert heard == [("w", 0, Grant(2))]
     assert worker.refused == {"control.other_run": 1}
 
 
@@ -218,15 +218,15 @@ async def test_a_bad_or_missing_tag_is_refused_when_a_key_is_set(run: Run) -> No
     worker.listen("**")
     stranger, _ = run.channel(5, SwarmKey(bytes(range(1, 33))))
     unkeyed, _ = run.channel(6)
-    stranger.send("w", Grant(1, 0.05))  # signed with another key
-    unkeyed.send("w", Grant(2, 0.05))  # no tag at all
+    stranger.send("w", Grant(1))  # signed with another key
+    unkeyed.send("w", Grant(2))  # no tag at all
     run.put("w", b"short")  # not even a tag's length
-    forged = bytearray(run.envelope("w", Grant(3, 0.05), sender=7, key=KEY))
+    forged = bytearray(run.envelope("w", Grant(3), sender=7, key=KEY))
     forged[5] ^= 1  # a bit flipped after signing
     run.put("w", bytes(forged))
-    run.put("w", run.envelope("w", Grant(4, 0.05), sender=7, key=KEY))
+    run.put("w", run.envelope("w", Grant(4), sender=7, key=KEY))
     await heard_all(heard, 5, worker)
-    assert heard == [("w", 7, Grant(4, 0.05))]
+    assert heard == [("w", 7, Grant(4))]
     assert worker.refused == {"control.unsigned": 4}
 
 
@@ -234,14 +234,14 @@ async def test_a_replay_is_refused_each_senders_count_must_grow(run: Run) -> Non
     worker, heard = run.channel(0, KEY)
     worker.listen("**")
     for count in (1, 3, 3, 2, 4):  # a repeat, then an old one
-        run.put("w", run.envelope("w", Grant(count, 0.05), sender=2, count=count, key=KEY))
-    run.put("w", run.envelope("w", Grant(1, 0.05), sender=3, count=1, key=KEY))  # its own count
+        run.put("w", run.envelope("w", Grant(count), sender=2, count=count, key=KEY))
+    run.put("w", run.envelope("w", Grant(1), sender=3, count=1, key=KEY))  # its own count
     await heard_all(heard, 6, worker)
     assert [(sender, message) for _, sender, message in heard] == [
-        (2, Grant(1, 0.05)),
-        (2, Grant(3, 0.05)),
-        (2, Grant(4, 0.05)),
-        (3, Grant(1, 0.05)),
+        (2, Grant(1)),
+        (2, Grant(3)),
+        (2, Grant(4)),
+        (3, Grant(1)),
     ]
     assert worker.refused == {"control.replayed": 2}
 
@@ -271,12 +271,12 @@ async def test_a_message_its_handler_cannot_apply_is_counted_and_the_rest_goes_o
     run: Run,
 ) -> None:
     world, _ = run.channel(WORLD)
-    worker, heard = run.channel(0, fail_on=lambda message: message == Grant(2, 0.05))
+    worker, heard = run.channel(0, fail_on=lambda message: message == Grant(2))
     worker.listen("**")
     for k in (1, 2, 3):
-        world.send("w", Grant(k, 0.05))
+        world.send("w", Grant(k))
     await heard_all(heard, 3, worker)
-    assert [message for _, _, message in heard] == [Grant(1, 0.05), Grant(3, 0.05)]
+    assert [message for _, _, message in heard] == [Grant(1), Grant(3)]
     assert worker.refused == {"control.unusable": 1}
 
 
@@ -284,13 +284,13 @@ async def test_a_closed_channel_hears_no_more(run: Run) -> None:
     world, _ = run.channel(WORLD)
     worker, heard = run.channel(0)
     worker.listen("**")
-    world.send("w", Grant(1, 0.05))
+    world.send("w", Grant(1))
     await heard_all(heard, 1, worker)
     worker.close()
     worker.close()  # idempotent
-    world.send("w", Grant(2, 0.05))
+    world.send("w", Grant(2))
     listener, also = run.channel(1)
     listener.listen("**")
-    world.send("w", Grant(3, 0.05))
-    await heard_all(also, 1, listener)  # by then Grant(2, 0.05) would have come too
-    assert heard == [("w", WORLD, Grant(1, 0.05))]
+    world.send("w", Grant(3))
+    await heard_all(also, 1, listener)  # by then Grant(2) would have come too
+    assert heard == [("w", WORLD, Grant(1))]

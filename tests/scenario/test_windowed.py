@@ -117,35 +117,39 @@ def test_a_run_with_the_default_latency_moves_in_windows(
     assert result.extra["windows"] == windows.rounds == len(windows.closed_windows)
     ends = [end for _, end, _, _ in windows.closed_windows]
     assert ends[0] == DEFAULT_LATENCY
-    # A window ends L after the first event at or after the previous end.
+    # A window ends L after the first event at or after the previous end, or at the
+    # next step (every run.credit, ten latencies by default) if that comes first.
+    step = 10 * DEFAULT_LATENCY
+    steps = 0
     for (_, end, next_event, following), later in zip(
         windows.closed_windows, ends[1:], strict=False
     ):
         assert next_event >= end
-        assert following == later == next_event + DEFAULT_LATENCY
+        if end == (steps + 1) * step:
+            steps += 1
+        assert following == later == min(next_event + DEFAULT_LATENCY, (steps + 1) * step)
+    assert steps > 10
     assert result.makespan is not None
     assert 10 < windows.rounds <= result.makespan / DEFAULT_LATENCY + 2
 
 
-def test_a_run_goes_on_exactly_its_credit_past_its_completion(
+def test_a_run_goes_on_to_the_end_of_the_step_after_its_completion(
     recorded: list[RecordingWindows], robots_worlds: list[Environment]
 ) -> None:
     outcome = run_small()
     makespan = outcome.result.makespan
     assert makespan is not None
-    credit = 10 * DEFAULT_LATENCY  # run.credit's default: ten latencies
+    step = 10 * DEFAULT_LATENCY  # run.credit's default: ten latencies
+    ends_at = (math.floor(makespan / step) + 2) * step  # the step after the completion's
     closed = recorded[0].closed_windows
     how, last_end, next_event, following = closed[-1]
     assert (how, following) == ("close", None)
     # The windows stop there, or where nothing happens before it any more.
-    assert last_end <= makespan + credit + 1e-12
-    assert (
-        last_end == pytest.approx(makespan + credit, abs=1e-12) or next_event >= makespan + credit
-    )
+    assert last_end == pytest.approx(ends_at, abs=1e-12) or next_event >= ends_at - 1e-12
     # The robots ran every event before it, and none at or past it.
     (robots,) = robots_worlds
     times = [event.t for event in robots.items.events]
-    assert max(times) < makespan + credit
+    assert max(times) < ends_at
     assert max(times) > makespan  # they did go on past the completion
     # ...but what the run measured ends at the completion.
     assert outcome.result.sim_time == makespan

@@ -200,17 +200,14 @@ class Window(msgspec.Struct, frozen=True, tag="window"):
 
 
 class Grant(msgspec.Struct, frozen=True, tag="grant"):
-    """The workers may run window ``k`` (the world observed window ``k - 2``), up to ``cap``.
+    """The workers may run every window up to the end of step ``steps`` (see ``_windows.Steps``).
 
-    No event at or after ``cap`` (simulated seconds) runs in window ``k``: the world
-    lets the workers run ``run.credit`` ahead of what it observed, and no further
-    than the instant the run ends. Every worker ends window ``k`` at the same
-    instant: the earliest next event of window ``k - 1`` plus the latency, or
-    ``cap``, whichever comes first.
+    The world lets the workers run a step (``run.credit``) past the one it observed
+    last, and no further than the end of the run once it is decided. Where windows
+    end does not depend on it: only when a worker may run them.
     """
 
-    k: int
-    cap: Annotated[float, finite(ge=0)]
+    steps: Annotated[int, msgspec.Meta(ge=0)]
 
 
 class Beat(msgspec.Struct, frozen=True, tag="beat"):

@@ -8,17 +8,18 @@ its own, as molecular dynamics keeps only the ghost atoms within its cutoff plus
 skin: the others are hidden (in no query, in range of nobody) and their motions
 kept, not applied.
 
-Time is cut into *epochs* of ``H`` simulated seconds (:func:`epoch_length`); windows
-end at every epoch's start, ``e * H``. At that instant each worker publishes the
-grid cell (of side ``D``, :func:`cell_size`) each of its robots stands in. A robot
-``b`` of another worker is watched during epoch ``e + 1`` when its cell at ``e * H``
-touches (Chebyshev distance at most 1) a cell of one of this worker's robots: robot
-``a`` moves at most ``v (2H)`` from where it was at ``e * H`` before the epoch ends,
-and ``b`` is seen (``L`` late, dead reckoning) at most ``v (2H + 2L)`` from where it
-was, so ``D = R + 2 v (2H + 2L)``, with ``v`` the run's top speed, covers every
-interaction of the epoch. A hidden robot is then farther than ``R`` from every robot
-of the worker all epoch long: every query, datagram and hand-over comes out as in one
-process, and the run's results are those of one process, to the bit.
+Time is cut into *epochs* of ``H`` simulated seconds (:func:`epoch_steps`), a whole
+number of the run's steps (see ``_windows.Steps``); windows end at every epoch's
+start. At that instant each worker publishes the grid cell (of side ``D``,
+:func:`cell_size`) each of its robots stands in. A robot ``b`` of another worker is
+watched during epoch ``e + 1`` when its cell at ``e * H`` touches (Chebyshev
+distance at most 1) a cell of one of this worker's robots: robot ``a`` moves at most
+``v (2H)`` from where it was at ``e * H`` before the epoch ends, and ``b`` is seen
+(``L`` late, dead reckoning) at most ``v (2H + 2L)`` from where it was, so ``D = R +
+2 v (2H + 2L)``, with ``v`` the run's top speed, covers every interaction of the
+epoch. A hidden robot is then farther than ``R`` from every robot of the worker all
+epoch long: every query, datagram and hand-over comes out as in one process, and the
+run's results are those of one process, to the bit.
 
 Epochs ``0`` and ``1`` are watched from where the robots start, which every process
 knows. The workers a worker watches robots of, or that watch its own, are its
@@ -38,7 +39,7 @@ from ..._errors import ConfigurationError
 from ..._types import RobotId
 from ...sim._environment import Environment
 
-__all__ = ["Halo", "cell_size", "epoch_length", "top_speed"]
+__all__ = ["Halo", "cell_size", "epoch_steps", "top_speed"]
 
 _EPOCH_SHARE: Final = 0.25
 """An epoch lets the fastest robot cross this share of the range (the skin is then half)."""
@@ -67,12 +68,17 @@ def top_speed(environment: Environment) -> float:
     return fastest
 
 
-def epoch_length(interaction_range: float, speed: float, latency: float) -> float:
-    """``H``: the fastest robot crosses a quarter of the range, within 10 latencies and 10 s."""
+def epoch_steps(interaction_range: float, speed: float, latency: float, step: float) -> int:
+    """Steps per epoch: ``H`` lets the fastest robot cross a quarter of the range.
+
+    At least ten latencies and a step, at most 10 s, in whole steps.
+    """
     if speed == 0:
-        return _EPOCH_MAX
-    share = _EPOCH_SHARE * interaction_range / speed
-    return min(max(share, _EPOCH_MIN_WINDOWS * latency), _EPOCH_MAX)
+        length = _EPOCH_MAX
+    else:
+        share = _EPOCH_SHARE * interaction_range / speed
+        length = min(max(share, _EPOCH_MIN_WINDOWS * latency), _EPOCH_MAX)
+    return max(1, round(length / step))
 
 
 def cell_size(interaction_range: float, speed: float, epoch: float, latency: float) -> float:
@@ -93,6 +99,7 @@ class Halo:
         index: this worker.
         interaction_range: the run's ``R``.
         latency: the run's ``L``.
+        step: the run's step (``run.credit``): an epoch is a whole number of them.
 
     Raises:
         ConfigurationError: a mobile robot declares no top speed.
@@ -105,10 +112,13 @@ class Halo:
         index: int,
         interaction_range: float,
         latency: float,
+        step: float,
     ) -> None:
         speed = top_speed(environment)
-        self.epoch = epoch_length(interaction_range, speed, latency)
-        """``H``, simulated seconds: windows end at every multiple of it."""
+        self.steps = epoch_steps(interaction_range, speed, latency, step)
+        """Steps per epoch: an epoch starts at every ``steps``-th step's end."""
+        self.epoch = self.steps * step
+        """``H``, simulated seconds."""
         self.cell = cell_size(interaction_range, speed, self.epoch, latency)
         """``D``: the side of the cells the workers publish."""
         self._environment = environment

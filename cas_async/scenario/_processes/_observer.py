@@ -175,8 +175,6 @@ class Observer:
         self._tick = 0  # the next sample is at tick * interval
         self.until = 0.0
         """The instant up to which the mirror is complete: the last window's end."""
-        self.completed_at: float | None = None
-        """The instant of the record whose event completed the mission, once one did."""
 
     @property
     def next_sample(self) -> float:
@@ -191,8 +189,6 @@ class Observer:
                 return
             await self.sample_until(t, inclusive=False)
             self._apply(t, kind, robot, record)
-            if done():
-                self.completed_at = t
         if not done():
             await self.sample_until(end, inclusive=False)
         self.until = end
@@ -207,8 +203,6 @@ class Observer:
             if done():
                 break
             self._apply(t, kind, robot, record)
-            if done():
-                self.completed_at = t
         if until is not None and not done():
             self.until = max(self.until, until)
 

@@ -31,7 +31,7 @@ import selectors
 from collections.abc import Awaitable, Callable
 from typing import Final
 
-__all__ = ["Held", "Windows"]
+__all__ = ["Held", "Steps", "Windows"]
 
 Closer = Callable[[float, float], Awaitable[float | None]]
 """``close(end, next_event)``: closes the window ending at ``end``; the next event of
@@ -139,6 +139,59 @@ class Windows:
         """The run is over: time moves freely from now on (the robots are being stopped)."""
         self.over = True
         self._end = math.inf
+
+
+class Steps:
+    """Where the windows of a run end: a latency after their first event, or at a step.
+
+    Windows of a run observed window by window (one process with a latency, or a
+    world and its workers) also end at every *step*, each ``credit`` (``run.credit``)
+    simulated seconds, and at ``max_time``. Steps are counted, never added up, so
+    every process that ends its windows alike counts the same steps at the same
+    instants: the world lets its workers run a step past what it observed
+    (:attr:`index` + 1), an interaction range turns its epochs every ``epoch``
+    steps, and a run decided in step ``c`` ends at the end of step ``c + 1``
+    (:meth:`end_of_run`): a credit or two past it, in one process as in many.
+
+    Args:
+        credit: the length of a step, simulated seconds.
+        latency: the run's latency: a window ends this long after its first event.
+        max_time: no window ends after it.
+        epoch: steps per epoch of an interaction range (``0``: no epochs).
+    """
+
+    def __init__(self, credit: float, latency: float, max_time: float, epoch: int = 0) -> None:
+        self.credit = credit
+        self.latency = latency
+        self.max_time = max_time
+        self.epoch = epoch
+        self.index = 0
+        """Steps ended so far: the windows under way end by ``(index + 1) * credit``."""
+
+    @property
+    def first_end(self) -> float:
+        """Where the first window ends (it starts at 0)."""
+        return self.next_end(0.0)
+
+    def next_end(self, following: float) -> float:
+        """Where the next window ends: ``following`` is its first event."""
+        return min(following + self.latency, (self.index + 1) * self.credit, self.max_time)
+
+    def ended(self, end: float) -> bool:
+        """A window ended at ``end``; whether that was the end of a step (then counted)."""
+        if end == (self.index + 1) * self.credit:
+            self.index += 1
+            return True
+        return False
+
+    @property
+    def epoch_starts(self) -> bool:
+        """Whether an epoch starts where the last step ended (see ``_halo``)."""
+        return self.epoch > 0 and self.index % self.epoch == 0
+
+    def end_of_run(self) -> float:
+        """Where a run decided in the step under way ends: the end of the step after it."""
+        return (self.index + 2) * self.credit
 
 
 class Held:

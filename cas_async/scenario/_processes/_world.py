@@ -57,7 +57,7 @@ from ._control import (
     Window,
     next_instant,
 )
-from ._halo import epoch_length, top_speed
+from ._halo import epoch_steps, top_speed
 from ._liveness import Liveness
 from ._lobby import Lobby
 from ._lost import WorkerLost, WorkerRefused
@@ -65,6 +65,7 @@ from ._observer import Observation, Observer
 from ._partition import lost_robots, partition
 from ._tally import summed_faults, summed_messages
 from ._window_costs import WindowCosts
+from ._windows import Steps
 
 __all__ = ["World"]
 
@@ -150,7 +151,7 @@ class World:
         self._pids: dict[int, int] = {}  # a worker's process id (its hello's) -> its index
         self._shares: list[list[RobotId]] = []
         self._costs = WindowCosts()  # rounds, cross-process effects, waits (see stats)
-        self._epoch = math.inf  # with an interaction range: windows end at its multiples
+        self._epoch_steps = 0  # with an interaction range: steps per epoch (see _halo)
         self.endpoint = ""
         """Where the router listens, once started."""
 
@@ -169,8 +170,8 @@ class World:
         ids = list(environment.robot_ids)  # every robot, built here or not (holds())
         limit, scenario = environment.interaction_range, self._scenario
         if limit is not None and scenario.run.virtual:  # the workers' epochs (see _halo)
-            latency = scenario.network.latency
-            self._epoch = epoch_length(limit, top_speed(environment), latency)
+            speed, latency = top_speed(environment), scenario.network.latency
+            self._epoch_steps = epoch_steps(limit, speed, latency, scenario.credit)
         try:
             self._shares = partition(
                 environment, ids, self._workers, self._scenario.run.partition, self._scenario.app
@@ -238,26 +239,27 @@ class World:
     async def coordinate(
         self, observer: Observer, done: Callable[[], bool], stop: asyncio.Event
     ) -> tuple[RunStatus, BaseException | None]:
-        """Observes every window and grants the ones after it, until the run ends (virtual time).
+        """Observes every window and lets the workers run on, until the run ends (virtual time).
 
-        The workers run window ``k + 1`` while the world observes window ``k``: the
-        world grants window ``k + 2`` once it has observed ``k``, capped
-        ``run.credit`` past it (see :mod:`._control`). Once a window decides the run
-        at ``t`` (its mission complete, or every robot stopped before it was; the
-        window in which the last robot stopped is observed up to that instant only),
-        the workers run every event before ``t + run.credit``, unobserved, and no
-        later one, as a run in one process does (see :mod:`.._run._windowed`): both
-        measure the same.
+        Windows end a latency after their first event, or at a step (``run.credit``,
+        see :class:`~._windows.Steps`): every process counts the same windows and
+        steps. The world lets the workers run a step past the one it observed last
+        (:class:`~._control.Grant`): it is not on their way. Once a window decides
+        the run in step ``c`` (its mission complete, or every robot stopped before it
+        was; the window in which the last robot stopped is observed up to that
+        instant only), the workers run every event before the end of step ``c + 1``,
+        unobserved, and no later one, as a run in one process does (see
+        :mod:`.._run._windowed`): both measure the same.
         """
         scenario, channel = self._scenario, self._channel
         assert channel is not None
-        latency, max_time, credit = scenario.network.latency, scenario.run.max_time, scenario.credit
-        caps = {1: min(credit, max_time)}
-        channel.send("all", Grant(1, caps[1]))
-        epochs = 0  # epochs started: the next starts at (epochs + 1) * self._epoch
-        end, k = min(latency, self._epoch), 0
+        latency, max_time = scenario.network.latency, scenario.run.max_time
+        steps = Steps(scenario.credit, latency, max_time, self._epoch_steps)
+        granted = 1
+        channel.send("all", Grant(granted))
+        end, k = steps.first_end, 0
         verdict: RunStatus | None = None
-        ends_at = math.inf  # once decided: the run ends there
+        ends_at, last_step = math.inf, -1  # once decided: the run ends at the end of last_step
         while True:
             try:
                 windows = await self._windows_of(k, stop)
@@ -268,22 +270,22 @@ class World:
             began = time.perf_counter()
             following = next_instant(windows.values(), latency)
             if verdict is None:
-                verdict, decided_at = await self._observe(observer, windows, end, done)
+                verdict = await self._observe(observer, windows, end, done)
                 if verdict is not None:
-                    ends_at = decided_at + credit
+                    ends_at, last_step = steps.end_of_run(), steps.index + 2
                 elif following >= max_time:
                     await observer.sample_until(max_time, inclusive=False)
                     self._costs.closed(windows.values(), time.perf_counter() - began)
                     return RunStatus.TIMED_OUT, None
             self._costs.closed(windows.values(), time.perf_counter() - began)
+            steps.ended(end)
             if verdict is not None and (end >= ends_at or following >= min(ends_at, max_time)):
                 return verdict, None  # every event before the end ran: none after it
-            caps[k + 2] = min(end + credit, ends_at, max_time)
-            channel.send("all", Grant(k + 2, caps[k + 2]))
-            if end == (epochs + 1) * self._epoch:
-                epochs += 1  # the workers turned their halos there
-            boundary = (epochs + 1) * self._epoch
-            end, k = min(following + latency, caps.pop(k + 1), boundary), k + 1
+            # The workers may run into the step after the one observed, never past the end.
+            if steps.index + 1 > granted:
+                granted = steps.index + 1 if verdict is None else min(steps.index + 1, last_step)
+                channel.send("all", Grant(granted))
+            end, k = steps.next_end(following), k + 1
 
     async def _observe(
         self,
@@ -291,21 +293,16 @@ class World:
         windows: dict[int, Window],
         end: float,
         done: Callable[[], bool],
-    ) -> tuple[RunStatus | None, float]:
-        """Observes window ``end`` ends at; whether it decided the run, and at which instant."""
+    ) -> RunStatus | None:
+        """Observes the window ending at ``end``: whether it decided the run (see coordinate)."""
         observations = [windows[w].observation for w in sorted(windows)]
         stopped_at = _all_stopped(windows.values())
         if stopped_at is not None:  # the last robot stopped: observed up to that instant
             await observer.window(stopped_at, [o.split(stopped_at)[0] for o in observations])
-            if done():  # met by then: a tie goes to the objective
-                assert observer.completed_at is not None
-                return RunStatus.COMPLETED, observer.completed_at
-            return RunStatus.STOPPED, stopped_at
+            # Met by then: a tie goes to the objective.
+            return RunStatus.COMPLETED if done() else RunStatus.STOPPED
         await observer.window(end, observations)
-        if done():
-            assert observer.completed_at is not None
-            return RunStatus.COMPLETED, observer.completed_at
-        return None, math.inf
+        return RunStatus.COMPLETED if done() else None
 
     async def follow(self, observer: Observer) -> None:
         """Applies what the workers report as it comes (scaled time); raises when one is lost.

@@ -21,7 +21,7 @@ from ..._time._clock import Clock
 from ..._time._virtual_loop import VirtualTimeLoop
 from ...sim._environment import Environment
 from .._processes._observer import Observer, Recorder, mirror_of
-from .._processes._windows import Windows
+from .._processes._windows import Steps, Windows
 from .._spec._loader import Scenario
 from ..output._results import RunStatus
 from ._sampled import first_ended
@@ -62,7 +62,7 @@ class WindowedRun:
         """Whether the run reached ``max_time`` (or nothing could happen any more)."""
         self.ended = asyncio.Event()
         """Set when the windows end by themselves: timed out, or closing one failed."""
-        self._credit = scenario.credit
+        self._steps = Steps(scenario.credit, self.latency, self._max_time)
         self._ends_at = math.inf  # once decided: the run ends there
         self._stopped_at: float | None = None  # when every robot had stopped, if they have
         self.verdict: RunStatus | None = None
@@ -135,9 +135,8 @@ class WindowedRun:
                 "cas_async.run(..., virtual=True)"
             )
         self._loop = loop
-        self._windows = Windows(
-            loop, loop.time() + self.latency, self._close, self.ended.set, quick=self._quick
-        )
+        first = self._clock.loop_time_at(self._steps.first_end)
+        self._windows = Windows(loop, first, self._close, self.ended.set, quick=self._quick)
         loop.run_windows(self._windows)
 
     def observe_now(self) -> None:
@@ -170,18 +169,21 @@ class WindowedRun:
         ):
             return None
         observer.apply([self._recorder.take()], until=end_t)
-        if self._done():  # complete in this window: the run ends a credit later
+        if self._done():  # complete in this window: the run ends at the next step's end
             self._decide(RunStatus.COMPLETED)
-        return self._next_end(next_event)
+        self._steps.ended(end_t)
+        return self._next_end(following)
 
     async def _close(self, end: float, next_event: float) -> float | None:
         """Observes the window that ends at ``end``; the end of the next one, if any.
 
-        Once a window decided the run (completed, or every robot stopped before the
-        objective was met), the robots run every event before ``run.credit`` past
-        that instant, unobserved, and no later one, as a run across processes does
-        (its workers run ahead of the world's observation): both measure the same.
-        A window in which every robot stopped is observed up to that instant only.
+        Windows end at every step too (see :class:`~.._processes._windows.Steps`).
+        Once a window decided the run in step ``c`` (completed, or every robot
+        stopped before the objective was met), the robots run every event before
+        the end of step ``c + 1``, unobserved, and no later one, as a run across
+        processes does (its workers run ahead of the world's observation): both
+        measure the same. A window in which every robot stopped is observed up to
+        that instant only.
         """
         clock, observer = self._clock, self._observer
         end_t, following = clock.at_loop_time(end), clock.at_loop_time(next_event)
@@ -190,10 +192,7 @@ class WindowedRun:
             stopped_at = self._stopped_at
             if stopped_at is not None:
                 await observer.window(stopped_at, [records.split(stopped_at)[0]])
-                if self._done():
-                    self._decide(RunStatus.COMPLETED)
-                else:
-                    self._decide(RunStatus.STOPPED, stopped_at)
+                self._decide(RunStatus.COMPLETED if self._done() else RunStatus.STOPPED)
             else:
                 await observer.window(end_t, [records])
                 if self._done():
@@ -204,27 +203,19 @@ class WindowedRun:
                     self.timed_out = True
                     self.ended.set()
                     return None
+        self._steps.ended(end_t)
         if self.verdict is not None and (
             end_t >= self._ends_at or following >= min(self._ends_at, self._max_time)
         ):
             self.ended.set()  # every event before the end ran: none after it
             return None
-        return self._next_end(next_event)
+        return self._next_end(following)
 
-    def _decide(self, verdict: RunStatus, at: float | None = None) -> None:
-        """The run is decided at ``at`` (the completion's instant when ``None``)."""
-        if at is None:
-            at = self._observer.completed_at
-            assert at is not None
+    def _decide(self, verdict: RunStatus) -> None:
+        """The run is decided in the step under way: it ends at the next one's end."""
         self.verdict = verdict
-        self._ends_at = at + self._credit
+        self._ends_at = self._steps.end_of_run()
 
-    def _next_end(self, next_event: float) -> float:
-        """The next window's end (loop time): a latency after its first event, or sooner.
-
-        Sooner when the run ends before: at ``max_time``, or a credit past the
-        instant it was decided.
-        """
-        clock = self._clock
-        natural = next_event + clock.loop_seconds(self.latency)
-        return min(natural, clock.loop_time_at(min(self._ends_at, self._max_time)))
+    def _next_end(self, following: float) -> float:
+        """The next window's end (loop time), its first event at ``following`` (simulated)."""
+        return self._clock.loop_time_at(min(self._steps.next_end(following), self._ends_at))
