@@ -25,7 +25,7 @@ from typing import Any, Final
 
 import pytest
 
-from cas_async.scenario import RunStatus, ScenarioError
+from cas_async.scenario import RunStatus, ScenarioError, load_scenario
 from cas_async.scenario.sweeps import (
     MetricStats,
     SweepOutcome,
@@ -553,6 +553,7 @@ def test_vary_values_are_read_as_set_reads_them(
         ("a.b=1,,2", "a.b: empty value"),
         ("a.b=1,", "a.b: empty value"),
         ("a.b=1,1", "a.b: value 1 is listed twice"),
+        ('a.b=0.5,"0.5"', 'a.b: values 0.5 and "0.5" both read 0.5 in runs.csv: keep one'),
         ("run.seed=1,2", "run.seed is the sweep's own"),
     ],
     ids=[
@@ -563,6 +564,7 @@ def test_vary_values_are_read_as_set_reads_them(
         "empty-value",
         "trailing-comma",
         "value-twice",
+        "same-label",
         "seed",
     ],
 )
@@ -594,6 +596,20 @@ def test_the_grid_is_the_product_of_the_axes_in_order() -> None:
         "run.seed=2",
     ]
     assert not plan.real_time
+
+
+def test_a_run_s_data_is_what_loading_it_gives() -> None:
+    plan = plan_sweep(
+        SMALL, seeds=2, vary=["strategy.name=time,solo"], overrides=["mission.buckets=3"]
+    )
+    for point, seed in [(0, 1), (1, 2)]:
+        loaded = load_scenario(SMALL, plan.run_overrides(point, seed)).data
+        assert plan.run_data(point, seed) == loaded
+    assert "seed" not in plan.point_data(1)["run"]
+    plan.run_data(0, 1)["mission"]["buckets"] = 99  # a copy: the plan is unchanged
+    assert plan.run_data(0, 1)["mission"]["buckets"] == 3
+    by_hand = SweepPlan(plan.path, 2, plan.axes, plan.overrides, plan.points)  # no contents
+    assert by_hand.run_data(1, 2) == plan.run_data(1, 2)
 
 
 def test_set_may_override_the_sweep_s_defaults() -> None:
