@@ -513,7 +513,11 @@ def test_in_process_a_signal_stops_the_sweep_and_main_returns_130(tmp_path: Path
     assert code == 130, stderr.getvalue()
     assert signal.getsignal(signal.SIGINT) is before
     assert 1 <= len(read_csv(out)) < 20
-    assert "interrupted: the runs not finished and the box plots left out" in stderr.getvalue()
+    done = len(read_csv(out))
+    assert (
+        f"interrupted: {done} of 20 runs done ({out / 'runs.csv'}), the others and the box "
+        f"plots left out; the same command with --resume runs the other {20 - done}"
+    ) in stderr.getvalue()
     assert stdout.getvalue().startswith((out / "table.md").read_text("utf-8"))
 
 

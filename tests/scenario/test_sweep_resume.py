@@ -11,6 +11,7 @@ import csv
 import io
 import json
 import math
+import sys
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from pathlib import Path
@@ -18,6 +19,7 @@ from typing import Any
 
 import pytest
 
+from cas_async._cli._main import main
 from cas_async.scenario import RunStatus, ScenarioError
 from cas_async.scenario.sweeps import SweepPlan, SweepRun, plan_sweep, run_sweep
 from cas_async.scenario.sweeps._manifest import check_resume, write_manifest
@@ -286,3 +288,59 @@ def test_an_executor_that_fails_ends_the_sweep_keeping_what_finished(tmp_path: P
 def test_an_executor_must_be_one(tmp_path: Path) -> None:
     with pytest.raises(TypeError, match=r"expected a concurrent\.futures\.Executor"):
         run_sweep(small_plan(tmp_path), executor=object())  # type: ignore[arg-type]
+
+
+# -- the command line ------------------------------------------------------------------------
+
+
+def _main(*args: str | Path) -> tuple[int, str, str]:
+    stdout, stderr = io.StringIO(), io.StringIO()
+    code = main([str(arg) for arg in args], stdout=stdout, stderr=stderr)
+    return code, stdout.getvalue(), stderr.getvalue()
+
+
+def test_resume_is_refused_after_the_scenario_changed(
+    tmp_path: Path, threads: ThreadPoolExecutor
+) -> None:
+    path = scenario(tmp_path, "[chores]", "target = 5")
+    out = tmp_path / "out"
+    run_sweep(plan_sweep(path, seeds=2, vary=[MODES]), executor=threads, out=out)
+    before = (out / "runs.csv").read_bytes()
+    scenario(tmp_path, "[chores]", "target = 4")
+    code, stdout, stderr = _main("sweep", path, "--seeds", "2", "--vary", MODES, "--out", out,
+                                 "--resume")  # fmt: skip
+    assert code == 2
+    assert stderr == (
+        f"error: --resume: {out}/ holds another sweep: the scenario changed "
+        "(chores.target was 5, now 4)\n"
+    )
+    assert stdout == ""
+    assert (out / "runs.csv").read_bytes() == before
+
+
+def test_resume_with_nothing_to_resume_makes_no_folder(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    code, _, stderr = _main("sweep", scenario(tmp_path), "--seeds", "1", "--out", out, "--resume")
+    assert code == 2
+    assert stderr.startswith(f"error: --resume: nothing to resume in {out}/")
+    assert not out.exists()
+
+
+def test_cluster_and_jobs_are_one_or_the_other(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exited:
+        _main("sweep", scenario(tmp_path), "--seeds", "1", "--jobs", "2", "--cluster", "tcp://x:1")
+    assert exited.value.code == 2
+    assert "--cluster: not allowed with argument --jobs" in capsys.readouterr().err
+
+
+def test_cluster_needs_the_dask_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "distributed", None)  # as if not installed
+    out = tmp_path / "out"
+    code, _, stderr = _main("sweep", scenario(tmp_path), "--seeds", "1", "--cluster", "tcp://x:1",
+                            "--out", out)  # fmt: skip
+    assert code == 2
+    assert stderr == (
+        "error: --cluster needs the dask extra (distributed): pip install 'cas_async[dask]'\n"
+    )
