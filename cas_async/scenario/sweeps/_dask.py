@@ -25,11 +25,12 @@ import queue
 import sys
 import uuid
 from collections.abc import Collection, Mapping
+from concurrent.futures import CancelledError
 from typing import TYPE_CHECKING, Any, Final, TypeGuard, cast, final
 
 from ..output._results import RunStatus
 from ._backend import Refused, RunFuture, Settled, settle_plainly
-from ._job import SweepJob, run_job
+from ._job import SweepJob, error_text, run_job
 from ._outcome import SweepRun
 
 if TYPE_CHECKING:
@@ -109,11 +110,19 @@ class DaskBackend:
         self, future: RunFuture, job: SweepJob, in_flight: Mapping[RunFuture, SweepJob]
     ) -> Settled:
         """The run; ``failed`` when its workers kept dying; a stop when cut off."""
-        if future.cancelled():
+        try:  # its result (or error) is fetched from the cluster: the connection may go
+            if future.cancelled():
+                raise CancelledError(future)
+            error = future.exception()
+            run: SweepRun | None = future.result() if error is None else None
+        except Exception as lost:  # a cancellation, or the connection closed
             if not self._connected():
                 return Settled(stop=self._lost())
-            return Settled(stop="the Dask cluster cancelled a run that the sweep had not")
-        error = future.exception()
+            if isinstance(lost, CancelledError):
+                return Settled(stop="the Dask cluster cancelled a run that the sweep had not")
+            return Settled(stop=f"the Dask cluster did not give a run back: {error_text(lost)}")
+        if run is not None:
+            return Settled(finished=(run,))
         if type(error).__name__ == "KilledWorker":
             tries = error.args[2] + 1 if error is not None and len(error.args) > 2 else "several"
             reason = f"its worker died {tries} times while running it (killed, or out of memory?)"

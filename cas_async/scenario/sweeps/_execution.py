@@ -290,10 +290,14 @@ class _Loop:
 
     def _give_up(self) -> None:
         """Records the runs finished since the last look, and abandons the others."""
-        for future, _job in list(self._in_flight.items()):
-            if future.done() and not future.cancelled() and future.exception() is None:
+        for future in list(self._in_flight):
+            try:  # a Dask future's result is fetched: its connection may be gone
+                run = future.result() if _succeeded(future) else None
+            except Exception:  # lost with the rest
+                run = None
+            if run is not None:
                 del self._in_flight[future]
-                self._record(future.result())
+                self._record(run)
         self._backend.abandon(list(self._in_flight))
 
     def _record(self, run: SweepRun) -> None:
@@ -319,6 +323,10 @@ def _backend(executor: Executor | Client | None, jobs: int | None, runs: int) ->
         "executor: expected a concurrent.futures.Executor or a distributed.Client, "
         f"got {type(executor).__name__}"
     )
+
+
+def _succeeded(future: RunFuture) -> bool:
+    return future.done() and not future.cancelled() and future.exception() is None
 
 
 def _order(run: SweepRun) -> tuple[int, int]:
