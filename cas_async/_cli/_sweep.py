@@ -30,7 +30,7 @@ from ..scenario import ScenarioError
 from ..scenario.sweeps import SweepOutcome, SweepPlan, plan_sweep, run_sweep, sweep_table
 from ..scenario.sweeps._box_plots import write_box_plots
 from ..scenario.sweeps._files import write_sweep_files
-from ..scenario.sweeps._manifest import check_resume
+from ..scenario.sweeps._manifest import MANIFEST, check_resume
 from ._exits import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, leaving_at_once, made
 from ._interrupts import Interrupted, Interrupts
 
@@ -86,7 +86,7 @@ def command_sweep(
         finally:
             if client is not None:
                 _close(client)
-        written = write_sweep_files(outcome, out)
+        written = [out / MANIFEST, *write_sweep_files(outcome, out)]
         print(sweep_table(outcome), end="", file=stdout)
 
     def say_written() -> None:

@@ -12,6 +12,7 @@ the loop's thread, so a back end needs no lock.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Collection, Mapping
 from concurrent.futures import CancelledError, Executor
 from dataclasses import dataclass
@@ -40,6 +41,9 @@ class RunFuture(Protocol):
 
     def result(self) -> Any:
         """What the call returned (the future is done)."""
+
+    def cancel(self) -> Any:
+        """Cancels the call if it has not started."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,7 +133,7 @@ class ExecutorBackend:
 
     def window(self) -> int:
         """``window``, or no limit."""
-        return self._window if self._window is not None else 1 << 62
+        return self._window if self._window is not None else sys.maxsize
 
     def running(self, handed_out: int) -> int:
         """All of them, as far as the sweep can tell."""
@@ -155,9 +159,7 @@ class ExecutorBackend:
     def abandon(self, futures: Collection[RunFuture]) -> None:
         """Cancels the runs not started; those running finish unseen."""
         for future in futures:
-            cancel = getattr(future, "cancel", None)
-            if cancel is not None:
-                cancel()
+            future.cancel()
 
     def close(self) -> None:
         """Nothing: the executor is the caller's."""
@@ -175,5 +177,5 @@ def settle_plainly(future: RunFuture, who: str) -> Settled:
         run: SweepRun = future.result()
         return Settled(finished=(run,))
     if isinstance(error, UnfitWorker):
-        return Settled(stop=f"{error.message} (install cas_async and the app there)")
+        return Settled(stop=f"{error.message}: install the same versions on every worker")
     return Settled(stop=f"{who} could not make a run: {error_text(error)}")

@@ -226,7 +226,7 @@ class _Loop:
         self._in_flight: dict[RunFuture, SweepJob] = {}
         self.finished: list[SweepRun] = []
         self.error: str | None = None
-        self.most = backend.window() if isinstance(backend, LocalPool) else 0
+        self.most = 0  # runs handed out at a time, at most
 
     def run(self, todo: deque[tuple[int, int]], stop: Callable[[], bool] | None) -> bool:
         """Runs ``todo`` (point, seed) in the grid's order; whether ``stop`` ended it."""

@@ -94,5 +94,5 @@ def run_job(job: SweepJob) -> SweepRun:
 
 
 def error_text(error: BaseException) -> str:
-    """``"RuntimeError: the message"``: an exception, on one line if it has one."""
+    """``"RuntimeError: the message"``: an exception's type and message."""
     return f"{type(error).__name__}: {error}"
