@@ -171,10 +171,14 @@ def run_sweep(
     display = SweepDisplay(progress_to, plan) if progress_to is not None else None
     runs_file = None
     if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
-        if not resume:
-            write_manifest(folder, plan)
-        runs_file = RunsFile(folder / _RUNS, plan, resumed)
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            if not resume:
+                write_manifest(folder, plan)
+            runs_file = RunsFile(folder / _RUNS, plan, resumed)
+        except BaseException:  # nothing ran: the back end lets go of what it holds
+            backend.close()
+            raise
     if display is not None and folder is not None and resume:
         display.resumed(resumed, folder)
         if note is not None:
@@ -231,7 +235,7 @@ class _Loop:
     def run(self, todo: deque[tuple[int, int]], stop: Callable[[], bool] | None) -> bool:
         """Runs ``todo`` (point, seed) in the grid's order; whether ``stop`` ended it."""
         again: deque[SweepJob] = deque()
-        ordinals = {(point, seed): k for k, (point, seed) in enumerate(todo)}
+        seeds = self._plan.seeds
         in_flight = self._in_flight
         try:
             while again or todo or in_flight:
@@ -244,7 +248,7 @@ class _Loop:
                     else:
                         point, seed = todo.popleft()
                         job = SweepJob(
-                            ordinals[point, seed],
+                            point * seeds + seed - 1,
                             point,
                             seed,
                             self._path,
