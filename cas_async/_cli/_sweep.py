@@ -113,7 +113,7 @@ def command_sweep(
 
 
 def _how_far(outcome: SweepOutcome, out: Path) -> str:
-    """``"17 of 40 runs done (runs/x/runs.csv); --resume runs the other 23"``."""
+    """How far the sweep got, and how to go on: ``"17 of 40 runs done (DIR/runs.csv), ..."``."""
     plan: SweepPlan = outcome.plan
     done = len(outcome.runs)
     return (
