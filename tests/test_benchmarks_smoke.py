@@ -153,6 +153,7 @@ async def test_a_peer_reports_what_it_received() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(180)  # a cluster and four sweeps start, each importing the library
 def test_the_sweep_benchmark_runs_both_ways_and_compares(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

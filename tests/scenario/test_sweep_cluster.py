@@ -264,6 +264,7 @@ def dask_commands(
                 process.wait(STOP_LIMIT)
 
 
+@pytest.mark.timeout(3 * START_LIMIT)  # a scheduler, two workers and two sweeps start
 def test_on_the_documented_commands_a_lost_scheduler_ends_the_sweep_keeping_its_runs(
     tmp_path: Path,
 ) -> None:
