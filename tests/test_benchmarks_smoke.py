@@ -150,3 +150,23 @@ async def test_a_peer_reports_what_it_received() -> None:
     async with peer_process("benchmarks._process_peer", ["raw", "--total", "10"]) as peer:
         assert await peer.finish() == 0  # nothing was sent
     assert peer.process.returncode == 0
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(180)  # a cluster and four sweeps start, each importing the library
+def test_the_sweep_benchmark_runs_both_ways_and_compares(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    pytest.importorskip("distributed", reason="the sweep benchmark needs the dask extra")
+    from benchmarks import sweep
+
+    before = children()
+    code = sweep.main(["--seeds", "1", "--reps", "1"])
+    assert children() <= before, "the benchmark left a child process behind"
+    printed = capsys.readouterr().out
+    assert code in (0, 1)  # the verdict on a loaded machine is not the test's
+    assert "local --jobs 2" in printed
+    assert "dask, 2 workers" in printed
+    assert "median wall: local " in printed
+    assert '"identical": false' not in printed
+    assert '"completed": false' not in printed

@@ -1,9 +1,10 @@
 """How a command ends: its exit codes, and leaving at once when a signal comes.
 
 Exit codes: 0 the mission completed (``sweep``: every run did); 1 it failed or ran
-out of simulated time (``sweep``: some run did); 2 the command line, the scenario
-or the set-up is wrong: anything refused before the robots run, on one line
-``error: ...``; 130 interrupted.
+out of simulated time (``sweep``: some run did, or the sweep ended early: its
+cluster lost, its executor broken); 2 the command line, the scenario or the set-up
+is wrong: anything refused before the robots run, on one line ``error: ...``; 130
+interrupted.
 """
 
 from __future__ import annotations

@@ -132,8 +132,9 @@ def parser() -> argparse.ArgumentParser:
         "sweep",
         help="run a scenario over a grid of values and seeds",
         description="Run a scenario for seeds 1..N at every point of a grid (the cartesian "
-        "product of the --vary values) in parallel worker processes, on virtual time; write "
-        "runs.csv, table.md, summary.json and box plots, and print the table.",
+        "product of the --vary values) in parallel worker processes or on a Dask cluster, on "
+        "virtual time; write sweep.json, runs.csv (as runs finish), table.md, summary.json and "
+        "box plots, and print the table.",
     )
     sweeper.add_argument("scenario", type=Path, help="the scenario file (TOML)")
     add = sweeper.add_argument
@@ -145,8 +146,15 @@ def parser() -> argparse.ArgumentParser:
         help='override a key in every run, after run.virtual=true and run.transport="memory" '
         "(run.virtual=false: scaled real time, slow)")  # fmt: skip
     add("--out", type=Path, metavar="DIR", help="where to write (default: runs/sweep-<scenario>)")
-    add("--jobs", type=_at_least_one, metavar="J",
-        help=f"worker processes (default: the CPUs, {os.cpu_count()} here)")  # fmt: skip
+    add("--resume", action="store_true",
+        help="keep the runs already finished in --out (the same scenario and grid), run the "
+        "others")  # fmt: skip
+    where = sweeper.add_mutually_exclusive_group().add_argument  # here, or on a cluster
+    where("--jobs", type=_at_least_one, metavar="J",
+          help=f"worker processes (default: the CPUs, {os.cpu_count()} here)")  # fmt: skip
+    where("--cluster", metavar="ADDRESS",
+          help="run on the workers of the Dask scheduler at ADDRESS, e.g. tcp://192.0.2.1:8786 "
+          "(needs the dask extra)")  # fmt: skip
     add("--no-plots", action="store_true", help="skip the box plots")
     add_view_commands(commands)
     return parser

@@ -6,6 +6,11 @@ and :func:`run_sweep` do it step by step. A :class:`SweepPlan` holds the
 :class:`SweepAxis` grid and every run's overrides; a :class:`SweepOutcome` the
 finished :class:`SweepRun` records and :class:`MetricStats` per point and metric;
 :func:`sweep_table` prints them.
+
+The runs go to worker processes of the sweep's own, to a Dask cluster (given a
+``distributed.Client``) or to any ``concurrent.futures.Executor``. Given an
+output folder, a sweep writes ``sweep.json`` first and a row of ``runs.csv`` as
+each run finishes, and a later one with ``resume=True`` runs only the others.
 """
 
 from ._execution import run_sweep, sweep

@@ -1,12 +1,14 @@
 """A sweep's outputs: ``runs.csv``, ``table.md``, ``summary.json`` and box plots.
 
 * ``runs.csv``: a row per finished run: the varied keys, ``seed``, ``status``,
-  ``error``, then every metric (full precision; empty where the run has none).
+  ``error``, then every metric (full precision; empty where the run has none);
+  see :mod:`._runs_file`, which also writes it as the runs finish.
 * ``table.md``: one markdown table, a row per metric and point (metrics in the
   order first seen, points in grid order): n, mean, std, min, median, max over the
   completed runs, with a line above saying what was run and one below naming the
   runs left out.
-* ``summary.json``: the same numbers, unrounded, and the incomplete runs.
+* ``summary.json``: the same numbers, unrounded, the incomplete runs, and how
+  the sweep went (runs resumed, workers lost, where it ran, why it ended early).
 * ``box_<metric>.png``: a box per point, over the completed runs (see :func:`write_box_plots`).
 
 Every file is written whole or not at all.
@@ -14,7 +16,6 @@ Every file is written whole or not at all.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from collections.abc import Sequence
@@ -23,7 +24,9 @@ from pathlib import Path
 from typing import Any, Final
 
 from ..output._atomic_files import atomic_text_file
+from ..output._results import RunStatus
 from ._outcome import SweepOutcome, SweepRun
+from ._runs_file import write_runs_csv
 
 __all__ = [
     "format_number",
@@ -94,7 +97,12 @@ def _intro(outcome: SweepOutcome) -> str:
     done = len(outcome.runs)
     completed = done - len(outcome.incomplete)
     ran = f"{done} of {plan.runs} runs (interrupted)" if outcome.interrupted else f"{done} runs"
+    failed, timed_out = _count(outcome, RunStatus.FAILED), _count(outcome, RunStatus.TIMED_OUT)
+    stopped = _count(outcome, RunStatus.STOPPED)
     verdict = "all completed" if completed == done else f"{completed} completed"
+    verdict += f", {failed} failed" if failed else ""
+    verdict += f", {stopped} stopped" if stopped else ""
+    verdict += f", {timed_out} timed out" if timed_out else ""
     return (
         f"Sweep of {plan.path.name}{settings}, {seeds}, {len(plan.points)} grid point"
         f"{'s' if len(plan.points) != 1 else ''}: {ran}, {verdict}. "
@@ -136,9 +144,17 @@ def sweep_summary(outcome: SweepOutcome) -> dict[str, Any]:
         "runs": plan.runs,
         "finished": len(outcome.runs),
         "completed": len(outcome.runs) - len(outcome.incomplete),
+        "failed": _count(outcome, RunStatus.FAILED),
+        "stopped": _count(outcome, RunStatus.STOPPED),
+        "timed_out": _count(outcome, RunStatus.TIMED_OUT),
         "interrupted": outcome.interrupted,
+        "error": outcome.error,
+        "resumed": outcome.resumed,
         "wall_time": outcome.wall_time,
         "jobs": outcome.jobs,
+        "ran_on": outcome.ran_on,
+        "workers_lost": outcome.workers_lost,
+        "runs_resent": outcome.runs_resent,
         "metrics": list(outcome.metrics),
         "points": [
             {
@@ -161,6 +177,10 @@ def sweep_summary(outcome: SweepOutcome) -> dict[str, Any]:
     }
 
 
+def _count(outcome: SweepOutcome, status: RunStatus) -> int:
+    return sum(run.status is status for run in outcome.runs)
+
+
 def _values(outcome: SweepOutcome, point: int) -> dict[str, Any]:
     plan = outcome.plan
     return {axis.key: axis.values[k] for axis, k in zip(plan.axes, plan.points[point], strict=True)}
@@ -175,7 +195,7 @@ def write_sweep_files(outcome: SweepOutcome, out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [out_dir / "runs.csv", out_dir / "table.md", out_dir / "summary.json"]
-    _write_csv(outcome, paths[0])
+    write_runs_csv(outcome.plan, outcome.runs, paths[0])
     with atomic_text_file(paths[1]) as stream:
         stream.write(sweep_table(outcome))
     # dates and times of TOML values are the only values JSON has no type for
@@ -183,16 +203,3 @@ def write_sweep_files(outcome: SweepOutcome, out_dir: Path) -> list[Path]:
     with atomic_text_file(paths[2]) as stream:
         stream.write(text + "\n")
     return paths
-
-
-def _write_csv(outcome: SweepOutcome, path: Path) -> None:
-    plan = outcome.plan
-    metrics = outcome.metrics
-    with atomic_text_file(path) as stream:
-        writer = csv.writer(stream, lineterminator="\n")
-        writer.writerow([*(axis.key for axis in plan.axes), "seed", "status", "error", *metrics])
-        for run in outcome.runs:
-            figures = [repr(run.scalars[name]) if name in run.scalars else "" for name in metrics]
-            writer.writerow(
-                [*plan.labels(run.point), run.seed, str(run.status), run.error or "", *figures]
-            )

@@ -85,10 +85,18 @@ class SweepOutcome:
 
     Attributes:
         plan: what was to run.
-        runs: the runs that finished (completed or not), by point then seed.
-        wall_time: wall seconds of the whole sweep.
-        jobs: how many worker processes ran them.
-        interrupted: the sweep was stopped before every run had finished.
+        runs: the runs that finished (completed or not), by point then seed; a
+            resumed sweep's earlier runs among them.
+        wall_time: wall seconds of the whole sweep (of this session, when resumed).
+        jobs: how many runs were handed out at a time, at most.
+        interrupted: the sweep ended before every run had finished.
+        error: why it ended so when nobody stopped it (the connection to the
+            cluster was lost, the executor failed), else ``None``.
+        resumed: how many of :attr:`runs` an earlier session of the sweep had made.
+        ran_on: where the runs ran, for people (``"2 worker processes"``,
+            ``"2 Dask workers at tcp://10.0.0.5:8786"``); empty when not said.
+        workers_lost: worker processes that died while the sweep ran.
+        runs_resent: runs handed out again because their worker was lost.
     """
 
     plan: SweepPlan
@@ -96,6 +104,11 @@ class SweepOutcome:
     wall_time: float
     jobs: int
     interrupted: bool = False
+    error: str | None = None
+    resumed: int = 0
+    ran_on: str = ""
+    workers_lost: int = 0
+    runs_resent: int = 0
 
     @property
     def incomplete(self) -> tuple[SweepRun, ...]:

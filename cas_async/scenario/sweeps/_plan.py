@@ -5,7 +5,9 @@ makes the cartesian product of the axes (in the order given) and loads every
 point's scenario once, so that a wrong key or value is reported, naming the
 point, before any run starts. Each run's overrides are, in order: the sweep's
 defaults (virtual time, memory transport), the user's ``--set`` texts, the
-point's ``key=value`` texts, then ``run.seed=S``.
+point's ``key=value`` texts, then ``run.seed=S``. The plan keeps each point's
+scenario data as it loaded it: a run is sent to a worker as that data
+(:meth:`SweepPlan.run_data`), never as a path to read again.
 """
 
 from __future__ import annotations
@@ -14,13 +16,13 @@ import dataclasses
 import itertools
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
 from .._spec._config import ScenarioError, show
-from .._spec._loader import load_scenario, parse_override
+from .._spec._loader import apply_overrides, load_scenario, parse_override
 
 __all__ = ["MAX_RUNS", "SWEEP_DEFAULTS", "SweepAxis", "SweepPlan", "parse_vary", "plan_sweep"]
 
@@ -66,8 +68,9 @@ def parse_vary(text: str) -> SweepAxis:
 
     Raises:
         ScenarioError: on key ``--vary``: no ``=`` or an empty key, an empty
-            value, a value listed twice, or the key ``run.seed`` (the sweep's
-            seeds are ``--seeds``).
+            value, a value listed twice, two values that read the same in
+            ``runs.csv`` (``0.5`` and ``"0.5"``), or the key ``run.seed`` (the
+            sweep's seeds are ``--seeds``).
     """
     key, equals, rest = text.partition("=")
     try:
@@ -93,7 +96,15 @@ def parse_vary(text: str) -> SweepAxis:
             raise _vary_error(f"{key}: value {item} is listed twice")
         seen.add(shown)
         values.append(value)
-    return SweepAxis(key, texts, tuple(values))
+    axis = SweepAxis(key, texts, tuple(values))
+    # A row of runs.csv names its point by the labels: they must tell the values apart.
+    for k, label in enumerate(axis.labels):
+        if label in axis.labels[:k]:
+            first = texts[axis.labels.index(label)]
+            raise _vary_error(
+                f"{key}: values {first} and {texts[k]} both read {label} in runs.csv: keep one"
+            )
+    return axis
 
 
 def _vary_error(message: str) -> ScenarioError:
@@ -137,6 +148,9 @@ class SweepPlan:
         points: the grid: per point, the index of its value on each axis, in the
             order of the cartesian product (the last axis varies fastest).
         real_time: some point runs on scaled real time (``run.virtual=false``).
+        contents: per point, its scenario data as :func:`plan_sweep` loaded it (the
+            file and what it extends, every override applied but ``run.seed``);
+            empty in a plan made by hand (see :meth:`point_data`).
     """
 
     path: Path
@@ -145,6 +159,9 @@ class SweepPlan:
     overrides: tuple[str, ...]
     points: tuple[tuple[int, ...], ...]
     real_time: bool = False
+    contents: tuple[Mapping[str, Any], ...] = dataclasses.field(
+        default=(), repr=False, compare=False
+    )
 
     @property
     def runs(self) -> int:
@@ -158,6 +175,24 @@ class SweepPlan:
             for axis, k in zip(self.axes, self.points[point], strict=True)
         ]
         return [*SWEEP_DEFAULTS, *self.overrides, *varied, f"{_SEED_KEY}={seed}"]
+
+    def point_data(self, point: int) -> dict[str, Any]:
+        """The scenario data of ``point``, without ``run.seed``: what its runs share.
+
+        A copy of :attr:`contents`, or the file read again when the plan has none.
+        """
+        if self.contents:
+            return apply_overrides(self.contents[point], ())
+        return _without_seed(load_scenario(self.path, self.run_overrides(point, 1)).data)
+
+    def run_data(self, point: int, seed: int) -> dict[str, Any]:
+        """The scenario data of the run of ``point`` and ``seed``.
+
+        What a worker runs (:func:`~cas_async.scenario.scenario_from_data`), so that
+        it needs neither the file nor what it extends: the same data
+        :func:`~cas_async.scenario.load_scenario` gives with :meth:`run_overrides`.
+        """
+        return apply_overrides(self.point_data(point), [(_SEED_KEY, seed)])
 
     def labels(self, point: int) -> tuple[str, ...]:
         """The values of ``point``, one per axis, for people."""
@@ -219,6 +254,7 @@ def _checked(plan: SweepPlan) -> SweepPlan:
     found: dict[tuple[str, str], list[str]] = {}  # problem -> the points that have it
     file = os.fspath(plan.path)
     real_time = False
+    contents = []
     for point in range(len(plan.points)):
         try:
             scenario = load_scenario(plan.path, plan.run_overrides(point, 1))
@@ -228,13 +264,22 @@ def _checked(plan: SweepPlan) -> SweepPlan:
                 found.setdefault(problem, []).append(plan.describe(point))
             continue
         real_time = real_time or not scenario.run.virtual
+        contents.append(_without_seed(scenario.data))
     if found:
         problems = [
             (key, message + _where(points, len(plan.points)) if plan.axes else message)
             for (key, message), points in found.items()
         ]
         raise ScenarioError(problems, file)
-    return dataclasses.replace(plan, real_time=real_time)
+    return dataclasses.replace(plan, real_time=real_time, contents=tuple(contents))
+
+
+def _without_seed(data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` (changed in place) without ``run.seed``, which the plan's seeds set."""
+    run = data.get("run")
+    if isinstance(run, dict):
+        run.pop("seed", None)
+    return data
 
 
 def _where(points: list[str], total: int) -> str:
