@@ -218,6 +218,7 @@ CONSOLE_PAGES: Final = [page for page in PAGES if any(b.kind == "console" for b 
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(5 * LIMIT)  # a page may run several commands, each within LIMIT
 @pytest.mark.parametrize("page", CONSOLE_PAGES, ids=ids(CONSOLE_PAGES))
 def test_console_blocks_print_what_the_page_shows(page: Path, tmp_path: Path) -> None:
     needs(page)
