@@ -1,9 +1,9 @@
-"""Shared fixtures: robots that start and stop themselves."""
+"""Shared fixtures (robots that start and stop themselves), and the slow tests' time limit."""
 
 from __future__ import annotations
 
 from collections.abc import Awaitable, Callable, Sequence
-from typing import Any
+from typing import Any, Final
 
 import pytest
 
@@ -11,6 +11,22 @@ from cas_async import Layer, Robot, Transport
 from cas_async.scenario.output import _plots as plots
 from cas_async.testing import Robots
 from tests.stacks import STACK_MESSAGES
+
+SLOW_TIMEOUT: Final = 300
+"""Wall seconds a test marked ``slow`` may take (the others: ``timeout`` in pyproject.toml, 60).
+
+A slow test does seconds of real work (subprocesses, mypy, whole runs): 30-45 s on a
+2-core machine beside a CPU hog, more than 60 s at a load of 8, where the one-minute
+limit, meant to catch a hang, failed seven of them. A test that sets its own limit
+keeps it.
+"""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Gives each test marked ``slow`` without a ``timeout`` of its own :data:`SLOW_TIMEOUT`."""
+    for item in items:
+        if item.get_closest_marker("slow") and item.get_closest_marker("timeout") is None:
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT))
 
 
 @pytest.fixture

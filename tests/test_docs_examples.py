@@ -29,7 +29,7 @@ def _run(args: list[str]) -> subprocess.CompletedProcess[str]:
         cwd=ROOT,
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=240,  # 46 s for the main job at a load of 8
         check=False,
     )
 

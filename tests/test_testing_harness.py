@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Hashable
+
 import pytest
 
 from apps.fire_brigade import TimeStrategy
@@ -110,3 +112,40 @@ async def test_the_harness_takes_the_drops_a_test_expects() -> None:
     ) as h:
         h.layer.send(9, Job(1))  # nobody is robot 9
         await h.settle()
+
+
+class Later(Layer):
+    """Sends Job(1) to robot 5 one simulated second after it starts, and Job(2) a second later."""
+
+    def __init__(self) -> None:
+        self.sent = 0
+
+    async def inner_process(self) -> None:
+        if self.sent < 2 and self.wake_due("job") is None:
+            self.wake_after(1.0, "job")
+
+    async def on_timer(self, key: Hashable) -> None:
+        self.sent += 1
+        self.send(5, Job(self.sent))
+
+
+@pytest.mark.cas_virtual
+async def test_settle_leaves_time_where_it_is_and_advance_moves_it_to_the_timers() -> None:
+    async with LayerHarness(Later(), peers=[5], messages=[Job, Done]) as h:
+        clock = h.robots.robots[0].clock
+        await h.settle()
+        assert (h.sent_to(5), clock.now()) == ([], 0.0)  # the timer is a second ahead
+        await h.advance(0.5)
+        assert (h.sent_to(5), clock.now()) == ([], 0.5)
+        await h.advance(0.5)  # onto the timer's instant: it goes off, its message arrives
+        assert ([m.n for m in h.sent_to(5) if isinstance(m, Job)], clock.now()) == ([1], 1.0)
+        await h.advance(10.0)
+        assert ([m.n for m in h.sent_to(5) if isinstance(m, Job)], clock.now()) == ([1, 2], 11.0)
+
+
+async def test_advance_refuses_a_negative_time_and_a_harness_not_started() -> None:
+    harness = LayerHarness(Later(), peers=[5], messages=[Job, Done])
+    with pytest.raises(RuntimeError, match="start the harness first"):
+        await harness.advance(1.0)
+    with pytest.raises(ValueError, match="seconds must be >= 0, got -1"):
+        await harness.advance(-1.0)

@@ -1,6 +1,7 @@
 """The edges of a layer's runtime: what it calls on the user's layer, and what the layer sees.
 
-* :class:`Hooks`: the methods of the user's :class:`~cas_async.Layer` the runtime calls;
+* :class:`Hooks`: the methods of the user's :class:`~cas_async.Layer` the runtime calls,
+  and :func:`hook_problems`: which of a layer class's hooks it could not call so;
 * :class:`RobotHandle`: what a layer sees of its robot (``self.robot``): its id,
   clock and state, and how to stop it; a layer knows nothing else of the robot
   (thesis rule 8: layers are developed in isolation);
@@ -10,8 +11,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Hashable
-from typing import NoReturn, Protocol, final
+import inspect
+import reprlib
+from collections.abc import Callable, Hashable
+from types import FunctionType
+from typing import Any, Final, NoReturn, Protocol, final
+from weakref import WeakKeyDictionary
 
 from .._errors import RobotStateError
 from .._time._clock import Clock
@@ -19,7 +24,7 @@ from .._types import RobotId
 from .._wire._message import Message
 from ._robot_state import RobotState
 
-__all__ = ["Detached", "Hooks", "Overrides", "RobotHandle"]
+__all__ = ["Detached", "Hooks", "Overrides", "RobotHandle", "hook_problems"]
 
 
 class Hooks(Protocol):
@@ -58,6 +63,98 @@ class Hooks(Protocol):
 
     def termination_condition(self) -> bool:
         """Whether the layer is done."""
+
+
+_HOOKS: Final = tuple(
+    name
+    for name, member in vars(Hooks).items()
+    if inspect.isfunction(member) and not name.startswith("_")
+)
+_ABSENT: Final = object()
+_checked: WeakKeyDictionary[type[Any], tuple[str, ...]] = WeakKeyDictionary()
+
+
+def hook_problems(cls: type[Any]) -> tuple[str, ...]:
+    """Each hook of ``cls`` the runtime could not call as :class:`Hooks` says: one line each.
+
+    A hook must take the arguments the runtime passes (``handle_msg(self, msg)``:
+    one, positionally; defaults and ``*args`` may take more), be ``async def``
+    where the runtime awaits it and a plain ``def`` where it does not
+    (``get_msg_reply``, ``termination_condition``). A decorated hook is judged
+    by what ``functools.wraps`` says it wraps; a hook whose signature cannot be
+    read is trusted. Each line starts with the hook's name, e.g. ``handle_msg(self)
+    cannot be called as Layer's async def handle_msg(self, msg: Message) -> None``.
+    Checked once per class.
+    """
+    problems = _checked.get(cls)
+    if problems is None:
+        problems = tuple(
+            problem for name in _HOOKS if (problem := _hook_problem(cls, name)) is not None
+        )
+        _checked[cls] = problems
+    return problems
+
+
+def _hook_problem(cls: type[Any], name: str) -> str | None:
+    expected: Callable[..., Any] = getattr(Hooks, name)
+    awaited = inspect.iscoroutinefunction(expected)
+    wanted = f"{'async def' if awaited else 'def'} {name}{_readable(inspect.signature(expected))}"
+    member = inspect.getattr_static(cls, name, _ABSENT)
+    if member is _ABSENT:
+        return None
+    if isinstance(member, staticmethod):
+        function, bound = member.__func__, 0
+    elif isinstance(member, classmethod):
+        function, bound = member.__func__, 1
+    elif isinstance(member, FunctionType):
+        function, bound = member, 1  # self
+    elif callable(member):
+        function, bound = member, 0
+    else:
+        return f"{name} is {reprlib.repr(member)}, not a method like Layer's {wanted}"
+    try:
+        signature = inspect.signature(function)
+    except (TypeError, ValueError):  # a builtin or an extension's: nothing to read
+        return None
+    arguments = len(inspect.signature(expected).parameters) - 1  # without self
+    try:
+        signature.bind(*[None] * (bound + arguments))
+    except TypeError:
+        return f"{name}{_readable(signature)} cannot be called as Layer's {wanted}"
+    is_async = inspect.iscoroutinefunction(inspect.unwrap(function))
+    if awaited and not is_async:
+        return f"{name} is a plain def, where Layer's is {wanted} (the runtime awaits it)"
+    if is_async and not awaited:
+        return f"{name} is async def, where Layer's is {wanted} (the runtime does not await it)"
+    return None
+
+
+class _Written(str):
+    """An annotation as its author wrote it: shown without the quotes of a ``str``."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
+def _readable(signature: inspect.Signature) -> inspect.Signature:
+    """``signature`` with each annotation as written: ``(self, msg: Message) -> None``."""
+
+    def written(annotation: object) -> object:
+        if annotation is inspect.Signature.empty:
+            return annotation
+        if isinstance(annotation, str):  # postponed (``from __future__ import annotations``)
+            return _Written(annotation)
+        return _Written(inspect.formatannotation(annotation))
+
+    parameters = [
+        parameter.replace(annotation=written(parameter.annotation))
+        for parameter in signature.parameters.values()
+    ]
+    return signature.replace(
+        parameters=parameters, return_annotation=written(signature.return_annotation)
+    )
 
 
 class RobotHandle(Protocol):

@@ -37,7 +37,7 @@ from .._time._clock import Clock
 from .._types import Level, RobotId
 from .._wire._message import Message
 from ._counters import LayerCounters
-from ._hooks import Detached, RobotHandle
+from ._hooks import Detached, RobotHandle, hook_problems
 from ._layer_runtime import LayerRuntime
 from ._logs import PrefixLogger
 
@@ -443,8 +443,9 @@ def attach(
     """Gives each layer of a new robot its runtime, made by ``runtime_for``: all or none.
 
     Raises:
-        ConfigurationError: an item is not a :class:`Layer` instance, or a layer
-            already belongs to a robot.
+        ConfigurationError: an item is not a :class:`Layer` instance, a layer
+            already belongs to a robot, or a hook of its class could not be called
+            as the runtime calls it (see :func:`~cas_async._core._hooks.hook_problems`).
     """
     checked: list[Layer] = []
     for level, layer in enumerate(layers):
@@ -458,6 +459,11 @@ def attach(
                 f"robot {robot_id}: {type(layer).__name__} at level {level} already "
                 f"belongs to robot {owner.outbox.robot_id}; "
                 "create one layer instance per robot"
+            )
+        problems = hook_problems(type(layer))
+        if problems:
+            raise ConfigurationError(
+                f"robot {robot_id}: {type(layer).__name__} at level {level}: " + "; ".join(problems)
             )
         checked.append(layer)
     runtimes = tuple(runtime_for(layer, level) for level, layer in enumerate(checked))

@@ -48,6 +48,10 @@ class LayerHarness:
             await h.settle()
             assert h.sent_to(3) == [RequestPartner(...)]
 
+    :meth:`settle` lets what can happen *now* happen: simulated time does not move,
+    so a timer the layer set for later (``wake_after``) has not gone off yet;
+    :meth:`advance` moves time on (``await h.advance(1.0)``).
+
     Args:
         layer: the layer under test.
         level: its level (0 is the top).
@@ -86,6 +90,7 @@ class LayerHarness:
         self._own = [_Scripted() for _ in range(height)]
         self._peers = {peer: _Scripted() for peer in self._peer_ids}
         self.robots = Robots(messages=messages, allowed_drops=allowed_drops)
+        self._robot: Robot | None = None
 
     async def __aenter__(self) -> LayerHarness:
         """Starts the robot and its peers (their layers too)."""
@@ -94,6 +99,7 @@ class LayerHarness:
         layers: list[Layer] = list(self._own)
         layers[self.level] = self.layer
         robots = [Robot(self._robot_id, layers, transport=transport, clock=clock, **self._opts())]
+        self._robot = robots[0]
         for peer, scripted in self._peers.items():
             stack: list[Layer] = [_Scripted() for _ in range(self._height)]
             stack[self.level] = scripted
@@ -172,7 +178,33 @@ class LayerHarness:
         return list(self._peer(peer).arrived)
 
     async def settle(self) -> None:
-        """Lets everything that can happen now happen (:func:`wait_all_tasks_blocked`)."""
+        """Lets everything that can happen now happen (:func:`wait_all_tasks_blocked`).
+
+        Messages are delivered and answered, hooks run, timers already due go off;
+        simulated time does not move. A timer set for later has not gone off:
+        :meth:`advance` moves time on to it (or use :func:`run_until` with the
+        condition you expect and a ``timeout``).
+        """
+        await wait_all_tasks_blocked()
+
+    async def advance(self, seconds: float) -> None:
+        """Moves the robots' time on by ``seconds``, then :meth:`settle`.
+
+        Every timer due meanwhile goes off at its instant, and what it sets in
+        motion happens. On the virtual-time loop (``@pytest.mark.cas_virtual``)
+        this takes no wall time; otherwise the robots' clock sleeps (real time,
+        scaled by its time factor).
+
+        Raises:
+            ValueError: ``seconds`` is negative or not a number.
+            RuntimeError: the harness has not started (use ``async with``).
+        """
+        if not seconds >= 0:
+            raise ValueError(f"advance(seconds): seconds must be >= 0, got {seconds!r}")
+        if self._robot is None:
+            raise RuntimeError("LayerHarness.advance: start the harness first (async with)")
+        clock = self._robot.clock
+        await clock.sleep_until(clock.now() + seconds)  # lands on the instant itself
         await wait_all_tasks_blocked()
 
     # -- helpers -------------------------------------------------------------------------

@@ -67,8 +67,10 @@ async def middleware(
         origin=Pose(args.x, args.y, args.heading),
         cmd_vel_type=args.cmd_vel_type,
         # A robot's odometry comes at its own pace in real time: a second of silence
-        # on the wall clock, whatever the time factor (timeouts are simulated seconds).
+        # on the wall clock, whatever the time factor (timeouts are simulated seconds),
+        # and ten wall seconds to find its topics.
         odom_timeout=max(1.0, args.time_factor),
+        discovery_timeout=10.0 * max(1.0, args.time_factor),
     )
     await stack.enter_async_context(drive)  # found, its types checked, its first odometry
     print(f"robot {args.id} drives the ROS 2 robot at {args.ros} ({link.nodes()})", flush=True)

@@ -27,7 +27,7 @@ def run(*args: str) -> subprocess.CompletedProcess[str]:
         cwd=ROOT,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=240,  # a loaded machine's wall time (dev mode makes asyncio slower too)
         check=False,
     )
 

@@ -1,4 +1,4 @@
-"""Shared pieces of the ROS tests: free ports, a plain Zenoh router, bounded polling."""
+"""Shared pieces of the ROS tests: free ports, a plain Zenoh router, bounded polling, time-outs."""
 
 from __future__ import annotations
 
@@ -6,7 +6,18 @@ import asyncio
 import contextlib
 import socket
 from collections.abc import AsyncIterator, Callable
-from typing import Any
+from typing import Any, Final
+
+PATIENT: Final = {"discovery_timeout": 120.0, "odom_timeout": 40.0}
+"""RosDiffDrive's time-outs for a loaded machine, in simulated seconds (a quarter in wall time).
+
+RosDiffDrive's defaults (10 s to find the robot, 1 s without odometry) are simulated
+seconds: at the tests' time factor of 4 a quarter of a wall second without odometry would
+fail a move. The first odometry after the topics are found takes some 50 ms of wall
+time on an idle 2-core machine, some 100-130 ms beside one CPU hog and up to 275 ms at
+a load of 5 (measured), so a test that is not about time-outs waits longer than any
+of that; a test of a time-out passes its own.
+"""
 
 
 def free_port() -> int:

@@ -20,7 +20,7 @@ pytest.importorskip("rosbags")
 from cas_async import ConfigurationError, ConstantSpeed, Pose, RobotStateError, ScaledClock
 from cas_async.ros import FakeRobot, RosDiffDrive, RosLink, RosTimeout, RosTypeMismatchWarning
 
-from .helpers import free_port, until, zenoh_session
+from .helpers import PATIENT, free_port, until, zenoh_session
 
 FACTOR = 4.0
 STAMPED = "geometry_msgs/msg/TwistStamped"
@@ -72,7 +72,7 @@ async def link_to() -> AsyncIterator[Callable[[FakeRobot], Awaitable[RosLink]]]:
 
 def drive_of(link: RosLink, **kwargs: Any) -> RosDiffDrive:
     kwargs.setdefault("speed_profile", ConstantSpeed(0.8))
-    return RosDiffDrive(link, 7, ScaledClock(FACTOR), **kwargs)
+    return RosDiffDrive(link, 7, ScaledClock(FACTOR), **{**PATIENT, **kwargs})
 
 
 @pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes

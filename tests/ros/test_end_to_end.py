@@ -27,7 +27,7 @@ from cas_async import ConstantSpeed, ScaledClock
 from cas_async.ros import RosDiffDrive, RosLink
 from cas_async.testing import peer_process
 
-from .helpers import free_port, until
+from .helpers import PATIENT, free_port, until
 
 FACTOR = 4.0  # simulated seconds per wall second, robot and middleware alike
 GOALS = [(1.5, 0.0), (1.5, 1.5), (0.0, 0.5)]
@@ -74,7 +74,11 @@ async def test_a_fake_rmw_zenoh_robot_is_found_driven_to_three_goals_and_all_end
             began = time.monotonic()
             async with link:
                 drive = RosDiffDrive(
-                    link, 10, ScaledClock(FACTOR), speed_profile=ConstantSpeed(0.8)
+                    link,
+                    10,
+                    ScaledClock(FACTOR),
+                    speed_profile=ConstantSpeed(0.8),
+                    **PATIENT,  # a loaded machine's wall time (see helpers.PATIENT)
                 )
                 async with drive:
                     discovered = time.monotonic() - began

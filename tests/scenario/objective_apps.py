@@ -30,6 +30,9 @@ class Chores:
     target: int = setting(5, ge=0, doc="chores for the mission to be complete")
     audit_fails_at: float = setting(-1.0, doc="check() raises from this instant on (< 0: never)")
     figure: bool = setting(False, doc="figures() writes chores.txt")
+    measure_fails: str = setting(
+        "", doc='measure() sets a dict as an extra ("extra") or raises ("raises"); "": neither'
+    )
 
 
 @dataclass(frozen=True)
@@ -86,11 +89,14 @@ class ChoreCount(Objective):
     detail = "busy robots"
     kind = "chores"
 
-    def __init__(self, board: Board, target: int, audit_fails_at: float, figure: bool) -> None:
+    def __init__(
+        self, board: Board, target: int, audit_fails_at: float, figure: bool, measure_fails: str
+    ) -> None:
         self._board = board
         self._target = target
         self._audit_fails_at = audit_fails_at
         self._figure = figure
+        self._measure_fails = measure_fails
         self.watch: Watch | None = None
         self.completions: list[float] = []
         self.measured_at: float | None = None
@@ -138,6 +144,10 @@ class ChoreCount(Objective):
         result.samples["chore_time"] = times
         result.samples["gap"] = [b - a for a, b in zip([0.0, *times], times, strict=False)]
         result.extra["busy_robots"] = len(self._busy())
+        if self._measure_fails == "extra":  # not one figure: refused here
+            result.extra["by_robot"] = {robot_id: 1 for robot_id in self._busy()}  # type: ignore[assignment]
+        if self._measure_fails == "raises":
+            raise ZeroDivisionError("no chores per robot to divide")
         result.extra["label"] = "toy"
 
     def figures(self, trace: Trace, out_dir: Path) -> list[Path]:
@@ -167,7 +177,9 @@ class ChoresApp:
             setup.environment.add_robot(robot_id, Pose(float(robot_id), 1.0, 0.0))
             doer = Doer(board, chores.per_robot, chores.period, robot_id / 10)
             robots.append(Robot(robot_id, [doer], transport=setup.transport, clock=setup.clock))
-        objective = ChoreCount(board, chores.target, chores.audit_fails_at, chores.figure)
+        objective = ChoreCount(
+            board, chores.target, chores.audit_fails_at, chores.figure, chores.measure_fails
+        )
         return Mission(robots, objective=objective)
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "AbstractTask",
     "ChattyTask",
     "CountingTask",
+    "DeafTask",
     "NotALayer",
     "PlainLayer",
     "SoloByLayers",
@@ -54,6 +55,13 @@ class NotALayer:
 
 class PlainLayer(Layer):
     """A layer, but not a Fire Brigade one (no ``BrigadeLayer``)."""
+
+
+class DeafTask(Task):
+    """A Task whose ``handle_msg`` takes no message: the runtime could not call it."""
+
+    async def handle_msg(self) -> None:  # type: ignore[override]
+        pass
 
 
 class AbstractTask(Task, abc.ABC):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -158,6 +159,13 @@ REFUSED = [
         id="abstract",
     ),
     pytest.param(
+        f'[layers]\ntask = "{SWAPS}.DeafTask"',
+        "layers.task",
+        f"{SWAPS}.DeafTask.handle_msg(self) -> None cannot be called as "
+        "Layer's async def handle_msg(self, msg: Message) -> None",
+        id="hook-signature",
+    ),
+    pytest.param(
         '[layers]\ntask = "tests.scenario.swaps_messages.LoudTask"',
         "layers.task",
         "tests.scenario.swaps_messages.LoudTask would change the stack's message set: "
@@ -234,6 +242,21 @@ def test_reports_every_problem_at_once(write: WriteScenario) -> None:
 def test_an_override_is_checked_as_the_file_is(write: WriteScenario) -> None:
     problems = problems_loading(write(""), (f"layers.9={SWAPS}.CountingTask",))
     assert problems == [("layers.9", f"no level 9: the stack has 5 levels, 0 to 4 ({LEVELS})")]
+
+
+def test_the_command_line_refuses_a_hook_it_could_not_call_with_exit_2(
+    write: WriteScenario,
+) -> None:
+    from cas_async._cli._main import main
+
+    path = write(f'[layers]\ntask = "{SWAPS}.DeafTask"')
+    stdout, stderr = io.StringIO(), io.StringIO()
+    assert main(["run", str(path), "--no-plots"], stdout=stdout, stderr=stderr) == 2
+    assert stderr.getvalue() == (
+        f"error: {path}: layers.task: {SWAPS}.DeafTask.handle_msg(self) -> None cannot be "
+        "called as Layer's async def handle_msg(self, msg: Message) -> None\n"
+    )
+    assert stdout.getvalue() == ""  # nothing ran
 
 
 def test_a_module_that_raises_on_import_says_why(tmp_path: Path) -> None:

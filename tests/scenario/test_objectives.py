@@ -192,6 +192,69 @@ def test_scalars_hold_each_sample_s_mean_and_no_exchanges(chores: Load) -> None:
     assert "travel_time" not in scalars
 
 
+# -- the app's measuring fails the run, never the summary ---------------------------------------
+
+
+def test_a_value_that_is_not_one_figure_fails_the_run_with_one_line(chores: Load) -> None:
+    result = run(chores(target=5, measure_fails="extra")).result
+    assert result.status is RunStatus.FAILED
+    assert result.error == (
+        "RunResult.extra['by_robot'] = {1: 1, 2: 1, 3: 1}: not one figure (dict); an extra "
+        "value is a number (int, float), a str or a bool (values per thing done go in "
+        "RunResult.samples)"
+    )
+    assert result.traceback is None  # the line says it all
+    assert result.makespan == pytest.approx(2.2)  # what was measured stays
+    assert result.extra == {"busy_robots": 3}
+    assert "error                 RunResult.extra['by_robot']" in summary_table(result)
+
+
+def test_an_objective_that_raises_while_measuring_fails_the_run(chores: Load) -> None:
+    result = run(chores(target=5, measure_fails="raises")).result
+    assert result.status is RunStatus.FAILED
+    assert result.error == (
+        "ChoreCount.measure raised ZeroDivisionError: no chores per robot to divide"
+    )
+    assert result.traceback is not None
+    assert "objective_apps.py" in result.traceback  # the app's line, to fix it
+    assert (result.delivered, result.sim_time) == (5, pytest.approx(2.2))  # measured before
+
+
+def test_mission_extra_that_returns_no_dict_fails_the_run(chores: Load) -> None:
+    scenario_run = ScenarioRun(chores(target=5))
+    scenario_run.mission.extra = lambda: [("a", 1)]  # type: ignore[assignment,return-value]
+
+    async def steps() -> RunResult:
+        async with scenario_run:
+            return await scenario_run.until_done()
+
+    result = cas_async.run(steps(), virtual=True)
+    assert (result.status, result.traceback) == (RunStatus.FAILED, None)
+    assert result.error == "Mission.extra returned a list, not a dict of figures by name"
+
+
+def test_the_command_line_shows_the_refused_value_without_a_traceback(tmp_path: Path) -> None:
+    from cas_async._cli._main import main
+
+    scenario = tmp_path / "chores.toml"
+    scenario.write_text(SCENARIO + 'target = 5\nmeasure_fails = "extra"\n')
+    stdout, stderr = io.StringIO(), io.StringIO()
+    out = tmp_path / "out"
+    code = main(
+        ["run", str(scenario), "--no-plots", "--out", str(out)], stdout=stdout, stderr=stderr
+    )
+    assert code == 1
+    assert "Traceback" not in stderr.getvalue()  # progress lines only
+    assert stdout.getvalue().splitlines()[:2] == [
+        f"Chores — {scenario}, seed 0: FAILED",
+        "error                 RunResult.extra['by_robot'] = {1: 1, 2: 1, 3: 1}: not one "
+        "figure (dict); an extra value is a number (int, float), a str or a bool (values per "
+        "thing done go in RunResult.samples)",
+    ]
+    results = json.loads((out / "results.json").read_text())
+    assert (results["status"], results["extra"]) == ("failed", {"busy_robots": 3})
+
+
 # -- the progress line ----------------------------------------------------------------------
 
 

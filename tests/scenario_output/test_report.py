@@ -5,6 +5,7 @@ import datetime
 import json
 import os
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -313,3 +314,74 @@ def test_summary_table_uses_the_item_name(item_name: str, plural: str) -> None:
     # however long the labels, the values start in one column
     column = max(22, len(f"hand-overs per {item_name} "))
     assert {line.index("mean") for line in lines if " mean " in line} == {column}
+
+
+# -- what extra holds ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("value", "kept"),
+    [
+        pytest.param(3, 3, id="int"),
+        pytest.param(0.25, 0.25, id="float"),
+        pytest.param("time", "time", id="str"),
+        pytest.param(True, True, id="bool"),
+        pytest.param(np.int64(7), 7, id="numpy-int"),
+        pytest.param(np.float32(0.5), 0.5, id="numpy-float"),
+        pytest.param(np.bool_(False), False, id="numpy-bool"),
+    ],
+)
+def test_extra_holds_one_figure_per_name(value: object, kept: object) -> None:
+    result = make_result(extra={})
+    result.extra["figure"] = value  # type: ignore[assignment]
+    assert result.extra["figure"] == kept
+    assert type(result.extra["figure"]) is type(kept)  # a Python value: JSON and the table
+
+
+SET_WAYS = {
+    "item": lambda extra, value: extra.__setitem__("by_robot", value),
+    "update": lambda extra, value: extra.update(by_robot=value),
+    "setdefault": lambda extra, value: extra.setdefault("by_robot", value),
+    "ior": lambda extra, value: extra.__ior__({"by_robot": value}),
+}
+
+
+@pytest.mark.parametrize("way", SET_WAYS.values(), ids=SET_WAYS.keys())
+@pytest.mark.parametrize(
+    ("value", "kind"),
+    [
+        pytest.param({1: 4, 2: 4}, "dict", id="dict"),
+        pytest.param([1.0, 2.0], "list", id="list"),
+        pytest.param(None, "NoneType", id="none"),
+        pytest.param(np.array([1, 2]), "numpy.ndarray", id="array"),
+    ],
+)
+def test_extra_refuses_what_is_not_one_figure_where_it_is_set(
+    way: Callable[[dict[str, object], object], object], value: object, kind: str
+) -> None:
+    result = make_result()
+    with pytest.raises(TypeError) as refused:
+        way(result.extra, value)  # type: ignore[arg-type]
+    line = str(refused.value)
+    assert line.startswith(f"RunResult.extra['by_robot'] = {value!r}: not one figure ({kind}); ")
+    assert "a number (int, float), a str or a bool" in line
+    assert "\n" not in line
+    assert "by_robot" not in result.extra
+
+
+def test_extra_given_whole_is_checked_too() -> None:
+    with pytest.raises(TypeError, match=r"RunResult\.extra\['cells'\] = \{1: 4\}: not one"):
+        make_result(extra={"cells": {1: 4}})
+    result = make_result()
+    with pytest.raises(TypeError, match=r"RunResult\.extra\[3\]: the key is not a str \(int\)"):
+        result.extra = {3: 1.0}  # type: ignore[dict-item]
+    result.extra = {"refills": np.int64(2)}  # type: ignore[dict-item]
+    assert result.extra == {"refills": 2}
+
+
+def test_the_summary_shows_any_value_a_result_holds() -> None:
+    result = make_result()
+    dict.__setitem__(result.extra, "cells_by_robot", {1: 4, 2: 4})  # past the check
+    dict.__setitem__(result.extra, "ratio", np.float32(0.5))
+    lines = summary_table(result).splitlines()
+    assert lines[-2:] == ["cells by robot        {1: 4, 2: 4}", "ratio                 0.5"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -19,7 +19,7 @@ from ...sim._environment import Environment
 from .._processes._lost import WorkerLost
 from .._spec._app import Mission
 from .._spec._objective import Objective
-from ..output._results import RunResult, RunStatus
+from ..output._results import ExtraValueError, RunResult, RunStatus
 from ..output._trace import Trace
 
 __all__ = ["PositionMeasures", "mark_failed", "measure_end"]
@@ -51,6 +51,9 @@ def measure_end(
 
     The requests are the internal ones still unanswered (see
     :meth:`~cas_async.Robot.unanswered_requests`), read before the robots stop.
+    The app's own measuring (the objective's ``measure``, the mission's ``extra``)
+    that raises fails the run with one line saying where (see :func:`_app_measures`),
+    and what was measured besides is kept.
     """
     result.sim_time = now
     result.distance = {
@@ -58,7 +61,8 @@ def measure_end(
         for robot_id, travelled in environment.distances(now).items()
         if environment.is_mobile(robot_id)
     }
-    objective.measure(result, now)
+    measured_by = f"{type(objective).__name__}.measure"
+    _app_measures(result, measured_by, lambda: objective.measure(result, now))
     messages, errors = counts
     result.messages_internal = dict(sorted(messages["internal"].items()))
     result.messages_external = dict(sorted(messages["external"].items()))
@@ -68,8 +72,37 @@ def measure_end(
         for what, n in robot.unanswered_requests().items():
             unanswered[what] = unanswered.get(what, 0) + n
     result.unanswered = dict(sorted(unanswered.items()))
-    if mission.extra is not None:
-        result.extra.update(mission.extra())
+    extra = mission.extra
+    if extra is not None:
+        _app_measures(result, "Mission.extra", lambda: _extras_of(extra, result))
+
+
+def _extras_of(extra: Callable[[], object], result: RunResult) -> None:
+    figures = extra()
+    if not isinstance(figures, Mapping):
+        raise ExtraValueError(
+            f"Mission.extra returned a {type(figures).__name__}, not a dict of figures by name"
+        )
+    result.extra.update(figures)
+
+
+def _app_measures(result: RunResult, where: str, measure: Callable[[], None]) -> None:
+    """Calls the app's ``measure``; its error fails the run (the first failure stays).
+
+    A value refused by ``RunResult.extra`` says all in its line; any other error
+    is the app's bug, named by ``where``, with its traceback.
+    """
+    try:
+        measure()
+    except Exception as error:
+        if result.status is RunStatus.FAILED:
+            return  # the run failed already: that failure is what the run reports
+        result.status = RunStatus.FAILED
+        if isinstance(error, ExtraValueError):
+            result.error, result.traceback = str(error), None
+        else:
+            result.error = f"{where} raised {type(error).__name__}: {error}"
+            result.traceback = "".join(traceback.format_exception(error)).rstrip()
 
 
 class PositionMeasures:

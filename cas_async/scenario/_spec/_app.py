@@ -189,8 +189,9 @@ class Mission:
         robots: every robot, each already added to the Environment.
         target: items to retire for the mission to be complete (an item mission).
         groups: robot ids by label, in the order to show them (e.g. ``"Generator"``).
-        extra: returns application-specific figures for the results; called once,
-            at the end of the run.
+        extra: returns application-specific figures for the results, by name, each
+            a number, a ``str`` or a ``bool`` (see ``RunResult.extra``); called
+            once, at the end of the run.
         measures: named :data:`Measure` functions of the robots' positions. Each
             is reported over time and by exchange count (results.json ``series`` and
             ``by_exchange``), and as one number, its mean over the last third of the

@@ -20,6 +20,9 @@ problem at once, each under its key (``layers.task``):
 * the class subclasses :class:`~cas_async.Layer` and the level's ``base`` (the app
   builds the level as it builds the base: same constructor, same role), and is not
   abstract;
+* each of its hooks can be called as the runtime calls :class:`~cas_async.Layer`'s
+  (``async def handle_msg(self, msg)``: async where Layer's is, taking its
+  arguments); a robot checks every layer's hooks too, when it is built;
 * the class leaves the stack's message set (``app.messages``) as it is: robots
   agree on message types by that set, so a replacement may use only its messages.
   The messages nested in their fields count as theirs (they travel inside them).
@@ -54,6 +57,7 @@ from pathlib import Path
 from types import CodeType, FunctionType
 from typing import Any, Final, TypeGuard
 
+from ..._core._hooks import hook_problems
 from ..._core._layer import Layer
 from ..._core._robot import Robot
 from ..._errors import ConfigurationError
@@ -235,6 +239,8 @@ def _layer_class(
     elif inspect.isabstract(found):
         missing = ", ".join(sorted(getattr(found, "__abstractmethods__", ())))
         problems.append((where, f"{value} is abstract (it lacks {missing}): it cannot be built"))
+    elif hooks := hook_problems(found):
+        problems.extend((where, f"{value}.{problem}") for problem in hooks)
     else:
         foreign = _foreign_messages(found, slot.base, allowed)
         if not foreign:

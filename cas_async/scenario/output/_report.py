@@ -37,6 +37,7 @@ from __future__ import annotations
 import datetime
 import json
 import math
+import numbers
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final, cast
@@ -272,7 +273,7 @@ def summary_table(result: RunResult) -> str:
         sizes = [f"{label} {len(ids):,}" for label, ids in result.groups.items()]
         rows.append(("robots", sizes, ""))
     for key, value in result.extra.items():
-        label, note = _RUNTIME_EXTRAS.get(key, (key.replace("_", " "), ""))
+        label, note = _RUNTIME_EXTRAS.get(key, (str(key).replace("_", " "), ""))
         rows.append((label, _extra_text(value), note))
     header = f"{result.app} — {result.scenario}, seed {result.seed}: {status}"
     return "\n".join([header, *_render(rows)])
@@ -443,9 +444,17 @@ _RUNTIME_EXTRAS: Final = {
 """Extras the runtime adds, by key: their row's label and what the value means."""
 
 
-def _extra_text(value: float | int | str) -> str:
+def _extra_text(value: object) -> str:
+    """An extra's value as the table shows it; never fails, whatever it is.
+
+    ``RunResult.extra`` refuses what is not a number, a str or a bool, but a
+    result may be made otherwise (read back, built by hand): such a value is shown
+    as ``str()`` shows it.
+    """
     if isinstance(value, bool | str):
         return str(value)
-    if isinstance(value, int):
-        return f"{value:,}"
-    return f"{value:.6g}"
+    if isinstance(value, numbers.Integral):
+        return f"{int(value):,}"
+    if isinstance(value, numbers.Real):
+        return f"{float(value):.6g}"
+    return str(value)

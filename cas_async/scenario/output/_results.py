@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import enum
+import numbers
+import reprlib
 from dataclasses import dataclass, field
 from statistics import fmean
-from typing import Any
+from typing import Any, Final, Self
 
-__all__ = ["RunProgress", "RunResult", "RunStatus"]
+import numpy as np
+
+__all__ = ["ExtraValueError", "Extras", "RunProgress", "RunResult", "RunStatus"]
+
+_SHORT: Final = reprlib.Repr()
+_SHORT.maxstring = _SHORT.maxother = 40  # a value in an error line, kept short
 
 
 class RunStatus(enum.StrEnum):
@@ -30,6 +37,76 @@ class RunStatus(enum.StrEnum):
     """``run.max_time`` simulated seconds passed before the target."""
     FAILED = "failed"
     """A layer raised; ``RunResult.error`` says which and why."""
+
+
+class ExtraValueError(TypeError):
+    """A value of ``RunResult.extra`` that is not one figure: refused where it is set."""
+
+
+def extra_value(key: object, value: object) -> float | int | str:
+    """``value`` as ``RunResult.extra[key]`` holds it; refuses what is not one figure.
+
+    A figure is a number, a ``str`` or a ``bool``: the summary shows it on one line,
+    results.json holds it as is, a sweep tabulates the numbers. numpy's scalars
+    are taken as the Python number (or bool) they hold.
+
+    Raises:
+        ExtraValueError: ``key`` is not a ``str``, or ``value`` not a figure (a
+            dict, a list, ``None``...), with one line naming both.
+    """
+    if not isinstance(key, str):
+        raise ExtraValueError(
+            f"RunResult.extra[{_SHORT.repr(key)}]: the key is not a str ({_kind(key)}); "
+            "an extra's key is its name"
+        )
+    if isinstance(value, bool | str):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    raise ExtraValueError(
+        f"RunResult.extra[{key!r}] = {_SHORT.repr(value)}: not one figure ({_kind(value)}); "
+        "an extra value is a number (int, float), a str or a bool (values per thing done "
+        "go in RunResult.samples)"
+    )
+
+
+def _kind(value: object) -> str:
+    kind = type(value)
+    return kind.__name__ if kind.__module__ == "builtins" else f"{kind.__module__}.{kind.__name__}"
+
+
+class Extras(dict[str, float | int | str]):
+    """``RunResult.extra``: a dict that refuses, where it is set, what is not one figure.
+
+    Every way of setting an entry (``extras[key] = value``, ``update``,
+    ``setdefault``, ``|=``, the constructor) goes through :func:`extra_value`.
+    """
+
+    __slots__ = ()
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__()
+        self.update(*args, **kwargs)
+
+    def __setitem__(self, key: str, value: float | int | str) -> None:
+        super().__setitem__(key, extra_value(key, value))
+
+    def update(self, *args: Any, **kwargs: Any) -> None:
+        for key, value in dict(*args, **kwargs).items():
+            self[key] = value
+
+    def setdefault(self, key: str, default: float | int | str) -> float | int | str:
+        if key not in self:
+            self[key] = default
+        return self[key]
+
+    def __ior__(self, other: Any) -> Self:  # type: ignore[override,misc]
+        self.update(other)
+        return self
 
 
 @dataclass(slots=True)
@@ -64,7 +141,10 @@ class RunResult:
             when the run had no faults.
         groups: robot ids by group label (e.g. ``{"Sink": [3, 4]}``), for tables and plots.
         config: the scenario as loaded (after ``--set`` overrides), as plain TOML data.
-        extra: application-specific figures, shown in the table and written to JSON.
+        extra: application-specific figures, shown in the table and written to JSON:
+            one per name, each a number, a ``str`` or a ``bool``; anything else
+            (a dict, a list, ``None``) is refused where it is set, with a
+            ``TypeError`` that names the key.
         metrics: application-defined measures of the swarm's positions, each
             summarised as one number (see :class:`~cas_async.scenario.Mission`'s
             ``measures``): the mean over the last third of the run's samples.
@@ -111,7 +191,7 @@ class RunResult:
     faults: dict[str, int] | None = None
     groups: dict[str, list[int]] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
-    extra: dict[str, float | int | str] = field(default_factory=dict)
+    extra: dict[str, float | int | str] = field(default_factory=Extras)
     metrics: dict[str, float] = field(default_factory=dict)
     series: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     by_exchange: dict[str, dict[str, list[float]]] = field(default_factory=dict)
@@ -155,6 +235,11 @@ class RunResult:
             if isinstance(value, int | float) and not isinstance(value, bool):
                 figures.setdefault(name, float(value))
         return figures
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if name == "extra" and not isinstance(value, Extras):  # a dict given whole: checked
+            value = Extras(value)
+        object.__setattr__(self, name, value)
 
 
 @dataclass(frozen=True, slots=True)
