@@ -9,6 +9,7 @@ naming what replaced it: ``msgspec.Meta`` (or :func:`~cas_async.finite`) for bou
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import msgspec
@@ -37,7 +38,8 @@ def Bounds(
     given = {name: value for name, value in bounds.items() if value is not None}
     if finite:
         return _finite(**given)
-    return msgspec.Meta(**given)
+    meta: Callable[..., msgspec.Meta] = msgspec.Meta  # one overload per pair of bounds
+    return meta(**given)
 
 
 _finite = finite  # the parameter named finite hides the function inside Bounds
