@@ -10,13 +10,15 @@ Nothing runs: everything comes from the run directory (:class:`Recording`).
 
 from __future__ import annotations
 
-import json
+import math
+import sys
 import warnings
 from pathlib import Path
-from typing import Any, final
+from typing import Any, Final, final
 
 from .. import ConfigurationError
 from ..transport import InsecureBindWarning
+from ._limits import ServerLimits
 from ._protocol import encode_frame, hello, text
 from ._recording import Recording, RecordingError
 from ._server import ViewServer, is_loopback
@@ -24,6 +26,8 @@ from ._viewer import Viewer
 from ._websocket import CloseCode
 
 __all__ = ["ReplayView"]
+
+_FLOAT_MAX: Final = int(sys.float_info.max)
 
 
 @final
@@ -37,15 +41,23 @@ class ReplayView:
         run_dir: a finished run's output directory.
         host: where to listen (loopback by default; another address warns).
         port: 0 picks a free one (:attr:`url` tells which).
+        limits: the server's time-outs and cap on connections.
 
     Raises:
         RecordingError: the directory cannot be replayed (naming the file at fault).
     """
 
-    def __init__(self, run_dir: Path, *, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(
+        self,
+        run_dir: Path,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        limits: ServerLimits | None = None,
+    ) -> None:
         self.recording = Recording(run_dir)
         self._host, self._port = host, port
-        self._server = ViewServer(self._opened, self._received)
+        self._server = ViewServer(self._opened, self._received, limits=limits)
         self._hello = text(self._hello_message())
 
     async def __aenter__(self) -> ReplayView:
@@ -129,18 +141,23 @@ class ReplayView:
         if len(self.recording):
             self._send(viewer, 0)
 
-    def _received(self, viewer: Viewer, message: str) -> None:
-        """A viewer's request: ``{"type": "seek", "t": T}``; anything else is ignored."""
-        try:
-            request = json.loads(message)
-            t = float(request["t"]) if request.get("type") == "seek" else None
-        except (ValueError, TypeError, KeyError, AttributeError):
+    def _received(self, viewer: Viewer, message: dict[str, Any]) -> None:
+        """A viewer's request: ``{"type": "seek", "t": T}``; anything else is ignored.
+
+        ``T`` is a number: before the first sample, the first is sent; after the
+        last (an infinity, or an integer of 400 digits), the last.
+        """
+        t = message.get("t")
+        if message.get("type") != "seek" or isinstance(t, bool) or not isinstance(t, int | float):
             return
-        if t is not None and len(self.recording):
-            try:
-                self._send(viewer, self.recording.index_at(t))
-            except RecordingError as exc:  # a malformed row: say so, keep serving
-                viewer.send_text(text({"type": "error", "message": str(exc)}))
+        if isinstance(t, int):  # JSON integers have no bound; past a float's range, the end
+            t = (math.inf if t > 0 else -math.inf) if abs(t) > _FLOAT_MAX else float(t)
+        if math.isnan(t) or not len(self.recording):
+            return
+        try:
+            self._send(viewer, self.recording.index_at(t))
+        except RecordingError as exc:  # the file changed since it was read: say so, keep serving
+            viewer.send_text(text({"type": "error", "message": str(exc)}))
 
     def _send(self, viewer: Viewer, index: int) -> None:
         sample = self.recording.sample(index)
