@@ -20,8 +20,9 @@ from ._export import export_mcap
 from ._limits import ServerLimits
 from ._live import LiveView
 from ._protocol import PROTOCOL, UNKNOWN, Frame, decode_frame
-from ._recording import Recording, RecordingError, Sample, write_scene
+from ._recording import Recording, Sample, write_scene
 from ._replay import ReplayView
+from ._run_files import RecordingError
 
 __all__ = [
     "Frame",

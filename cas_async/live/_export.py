@@ -57,10 +57,7 @@ def export_mcap(run_dir: Path, out: Path) -> int:
     """
     writer_type = _import_writer()
     recording = Recording(run_dir)
-    groups = {
-        name: [int(robot) for robot in ids]
-        for name, ids in recording.results.get("groups", {}).items()
-    }
+    groups = recording.groups
     rows = {robot: k for k, robot in enumerate(recording.robots)}
     topics = {
         f"/robots/{_slug(name)}": [rows[r] for r in ids if r in rows]
@@ -114,7 +111,7 @@ def _slug(name: str) -> str:
 
 
 def _stamp(t: float) -> dict[str, int]:
-    nanoseconds = round(t * 1e9)
+    nanoseconds = round(t * 1e9)  # t is from 0 to 1e9 (checked when read): int32 seconds
     return {"sec": nanoseconds // 1_000_000_000, "nanosec": nanoseconds % 1_000_000_000}
 
 

@@ -138,8 +138,8 @@ def encode_frame(
         t,
         seq & 0xFFFFFFFF,
         n,
-        min(done, UNKNOWN),
-        min(detail, UNKNOWN),
+        min(max(done, 0), UNKNOWN),
+        min(max(detail, 0), UNKNOWN),
         len(measures),
         0,
     )

@@ -20,7 +20,8 @@ from .. import ConfigurationError
 from ..transport import InsecureBindWarning
 from ._limits import ServerLimits
 from ._protocol import encode_frame, hello, text
-from ._recording import Recording, RecordingError
+from ._recording import Recording
+from ._run_files import RecordingError
 from ._server import ViewServer, is_loopback
 from ._viewer import Viewer
 from ._websocket import CloseCode
@@ -97,7 +98,7 @@ class ReplayView:
 
     def _hello_message(self) -> dict[str, Any]:
         recording = self.recording
-        results = recording.results
+        info = recording.info
         events: list[dict[str, Any]] = [
             {"type": "exchange", "t": t, "count": count} for t, count in recording.exchanges
         ]
@@ -106,34 +107,27 @@ class ReplayView:
             for k, t in enumerate(recording.deliveries)
         ]
         events.sort(key=lambda event: float(event["t"]))
-        groups = results.get("groups", {})
-        kind = str(results.get("kind", "items"))  # an item mission's results name no kind
-        items = kind == "items"
+        kind = info["kind"]
         return hello(
             "replay",
-            app=str(results.get("app", "")),
-            scenario=str(results.get("scenario", "")),
-            seed=int(results.get("seed", 0)),
+            app=info["app"],
+            scenario=info["scenario"],
+            seed=info["seed"],
             world=recording.world,
             robots=recording.robots,
-            groups=groups if isinstance(groups, dict) else {},
+            groups=recording.groups,
             scene=recording.scene,
             measures=recording.measures,
-            target=int(results.get("target", 0)),
+            target=info["target"],
             words=(
-                str(results.get("item_name", "item")),
-                str(results.get("verb", "delivered" if items else "done")),
-                "exchanges" if items else "events",  # results.json keeps no name for it
+                info["item_name"],
+                info["verb"],
+                "exchanges" if kind == "items" else "events",  # results.json keeps no name for it
             ),
             kind=kind,
             times=recording.times,
             events=events,
-            end={
-                "t": results.get("sim_time"),
-                "status": results.get("status"),
-                "makespan": results.get("makespan"),
-                "done": results.get("delivered"),
-            },
+            end=info["end"],
         )
 
     def _opened(self, viewer: Viewer) -> None:
