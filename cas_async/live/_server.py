@@ -44,7 +44,7 @@ from ._limits import ServerLimits
 from ._pacer import WallTicker
 from ._protocol import read_client_message
 from ._viewer import Viewer
-from ._websocket import CloseCode
+from ._websocket import CloseCode, Opcode, frame
 
 __all__ = ["ViewServer", "is_loopback"]
 
@@ -55,6 +55,10 @@ _ASSETS: Final = {
 }
 BACKLOG: Final = 128
 """Connections the kernel holds for the server before it accepts them."""
+SEND_BUFFER: Final = 256 * 1024
+"""Bytes the kernel may buffer for a connection (``SO_SNDBUF``, which Linux doubles), at
+most: a viewer that stops reading holds this (and :data:`~._viewer.HIGH_WATER` of ours),
+where the kernel's own tuning would let it grow to megabytes."""
 
 _NUMERIC: Final = socket.AI_NUMERICHOST
 
@@ -143,6 +147,9 @@ class ViewServer:
         self._ticker = WallTicker(loop, self._limits.tick, self.sweep)
 
     def _accepted(self, sock: socket.socket) -> None:
+        with contextlib.suppress(OSError):  # a viewer that stalls holds this much in the kernel
+            if sock.getsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF) > SEND_BUFFER:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
         loop = asyncio.get_running_loop()
         task = loop.create_task(loop.connect_accepted_socket(lambda: Connection(self), sock))
         self._opening.add(task)
@@ -230,9 +237,10 @@ class ViewServer:
             self._lost.set()
 
     def broadcast_frame(self, data: bytes) -> None:
-        """Sends a frame to every viewer (held back for the slow ones)."""
+        """Sends a frame to every viewer (held back for the slow ones), framed once."""
+        framed = frame(Opcode.BINARY, data)
         for viewer in self.viewers:
-            viewer.send_frame(data)
+            viewer.send_framed(framed)
 
     def broadcast_text(self, text: str) -> None:
         """Sends a text message to every viewer."""
