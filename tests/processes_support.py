@@ -37,8 +37,9 @@ EXIT_LIMIT: Final = 10.0
 """Wall seconds a process may take to exit once its run is over."""
 WORKER_EXIT_LIMIT: Final = 8.0
 """Wall seconds a worker may take to exit once its world stopped it, or died (about 1 s)."""
-WRONG_KEY_LIMIT: Final = 15.0
-"""Wall seconds a worker with another key than the world's may take to say so (about 1 s)."""
+WRONG_KEY_LIMIT: Final = 10.0
+"""Wall seconds a worker with another key than the world's may take to say so: its start
+(about 1 s), and the 2 s it waits for a signed answer after those that do not check."""
 START_LIMIT: Final = 30.0
 """Wall seconds until a world listens, or a run shows progress."""
 

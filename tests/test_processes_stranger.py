@@ -64,11 +64,23 @@ SPURIOUS_REPLAYS: Final = 0
 messages under two keys may come out of order; each key keeps its own count)."""
 LIMIT: Final = 240
 """Wall seconds a test may take: its run and, for the first, the clean run it compares with."""
-LOBBY_HELLOS: Final = "cas_async/lobby/ctl/hello/"
-"""Where workers ask the world to join (every run's lobby): each under its own nonce,
-``hello/<nonce>``, all of which the world reads (``hello`` alone, nobody)."""
-STRANGE_HELLO: Final = LOBBY_HELLOS + "stranger"
-"""A hello key of the stranger's (no hex nonce: the world answers none of them)."""
+LOBBIES: dict[str, str] = {}
+"""Where the workers of each run (by its namespace) ask its world to join: the world's
+lobby (``cas_async/lobby/<the world's Zenoh id>/ctl/hello/``), each under its own
+nonce, ``hello/<nonce>``, all of which the world reads (``hello`` alone, nobody).
+Filled as the stranger finds each run."""
+
+
+def lobby_hellos(namespace: str) -> str:
+    """The prefix of the hellos of the run ``namespace``'s world."""
+    return LOBBIES[namespace]
+
+
+def strange_hello(namespace: str) -> str:
+    """A hello key of the stranger's (no hex nonce: the world answers none of them)."""
+    return lobby_hellos(namespace) + "stranger"
+
+
 GARBAGE: Final = (
     b"",
     b"\x00",
@@ -110,13 +122,19 @@ class Stranger:
         return sorted(str(reply.ok.key_expr) for reply in replies if reply.ok is not None)
 
     def namespace(self, limit: float = 20.0) -> str:
-        """The run's namespace: where the world's token is (``<namespace>/world``)."""
+        """The run's namespace: where the world's token is (``<namespace>/world``).
+
+        Its world's lobby is the router's this session connected to (``LOBBIES``).
+        """
         deadline = time.monotonic() + limit
         while time.monotonic() < deadline:
             worlds = [key for key in self.tokens() if key.endswith("/world")]
             if worlds:
                 assert len(worlds) == 1, worlds
-                return worlds[0].removesuffix("/world")
+                namespace = worlds[0].removesuffix("/world")
+                (router,) = self.session.info.routers_zid()
+                LOBBIES[namespace] = f"cas_async/lobby/{router}/ctl/hello/"
+                return namespace
             time.sleep(0.1)
         pytest.fail(f"no world's token under cas_async/** after {limit} s")
 
@@ -170,7 +188,8 @@ class Sent:
 
 def _world_reads(namespace: str, key: str) -> bool:
     return key == f"{namespace}/ctl/world" or any(
-        _one_chunk_under(prefix, key) for prefix in (f"{namespace}/ctl/win/", LOBBY_HELLOS)
+        _one_chunk_under(prefix, key)
+        for prefix in (f"{namespace}/ctl/win/", lobby_hellos(namespace))
     )
 
 
@@ -197,7 +216,7 @@ def _run_keys(namespace: str) -> list[str]:
         f"{namespace}/all",
         f"{namespace}/world",
         f"{namespace}/win/0",
-        STRANGE_HELLO,
+        strange_hello(namespace),
     ]
 
 
@@ -230,7 +249,7 @@ def replay(stranger: Stranger, namespace: str) -> Sent:
 def flood(stranger: Stranger, namespace: str) -> Sent:
     sent = Sent()
     keys = [f"{namespace}/ctl/world", f"{namespace}/ctl/win/0", f"{namespace}/ctl/all",
-            STRANGE_HELLO]  # fmt: skip
+            strange_hello(namespace)]  # fmt: skip
     for n in range(FLOOD):
         sent.put(stranger, keys[n % len(keys)], GARBAGE[n % (len(GARBAGE) - 1)] + n.to_bytes(4))
     return sent
@@ -380,7 +399,8 @@ def test_replayed_control_messages_are_refused_and_counted(
     refused = control_refusals(_completed(probed))
     assert probed.sent.to_world(probed.namespace) > 10, probed.sent.puts
     assert f"{probed.namespace}/ctl/world" in probed.sent.puts  # Ready
-    assert any(key.startswith(LOBBY_HELLOS) for key in probed.sent.puts)  # the workers' Hellos
+    hellos = lobby_hellos(probed.namespace)
+    assert any(key.startswith(hellos) for key in probed.sent.puts)  # the workers' Hellos
     # Signed, but each one's count was taken already: refused by every reader, counted.
     expected = probed.sent.refusals(probed.namespace)
     assert expected <= refused.pop("control.replayed") <= expected + SPURIOUS_REPLAYS

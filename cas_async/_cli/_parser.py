@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from .._wire._swarm_key import SwarmKey
-from ..scenario import FailOnDrops
+from ..scenario import FailOnDrops, ScenarioError, parse_override
 from ..scenario._processes._joining import CONNECT_WAIT
 
 _LONGEST_WAIT = 86_400.0
@@ -190,19 +190,58 @@ def _drop_reasons(text: str) -> FailOnDrops:
 
 
 def overrides_of(args: argparse.Namespace) -> list[str]:
-    """The --set overrides, then the dedicated flags (which win)."""
+    """The ``--set`` overrides, then what the dedicated flags set.
+
+    A flag sets its key over the file's value. A ``--set`` of a key that a flag
+    also sets must say the same (``--seed 3`` with ``--set run.seed=3``), or both
+    are refused, so that the user's value is never dropped unchecked (every ``--set``
+    value left is validated with the file, as the file's own). ``--virtual`` makes
+    the memory transport the default, which a transport named by ``--transport``
+    or ``--set run.transport`` replaces (and the file's checks refuse UDP).
+
+    Raises:
+        ScenarioError: a malformed ``--set``, or one that contradicts a flag (naming
+            the key, and both).
+    """
     overrides = list(args.overrides)
+    named = {key: (text, value) for text in overrides for key, value in [parse_override(text)]}
+    flags: list[tuple[str, str, Any]] = []  # (the flag as typed, key, value)
     if args.seed is not None:
-        overrides.append(f"run.seed={args.seed}")
-    if getattr(args, "time_factor", None) is not None:
-        overrides += [f"run.time_factor={args.time_factor!r}", "run.virtual=false"]
+        flags.append((f"--seed {args.seed}", "run.seed", args.seed))
+    time_factor = getattr(args, "time_factor", None)
+    if time_factor is not None:
+        flag = f"--time-factor {time_factor:g}"
+        flags += [(flag, "run.time_factor", time_factor), (flag, "run.virtual", False)]
     if args.virtual:
-        overrides.append("run.virtual=true")
-        if getattr(args, "transport", None) is None:
-            overrides.append('run.transport="memory"')
-    if getattr(args, "transport", None) is not None:
-        overrides.append(f'run.transport="{args.transport}"')
-    return overrides
+        flags.append(("--virtual", "run.virtual", True))
+    transport = getattr(args, "transport", None)
+    if transport is not None:
+        flags.append((f"--transport {transport}", "run.transport", transport))
+    elif args.virtual and "run.transport" not in named:
+        flags.append(("--virtual", "run.transport", "memory"))
+    problems = [
+        (key, f"--set {named[key][0]!r} contradicts {flag}: give one of them")
+        for flag, key, value in flags
+        if key in named and not _agree(named[key][1], value)
+    ]
+    if problems:
+        raise ScenarioError(problems)
+    return [*overrides, *(f"{key}={_toml(value)}" for _, key, value in flags)]
+
+
+def _agree(given: Any, flag: Any) -> bool:
+    """Whether a ``--set`` value is the flag's (an integer for a float flag is)."""
+    if type(given) is type(flag):
+        return bool(given == flag)
+    return type(given) is int and type(flag) is float and given == flag
+
+
+def _toml(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return repr(value)
 
 
 def _address(text: str) -> tuple[str, int]:

@@ -88,7 +88,7 @@ def command_run(
     try:
         scenario = load_scenario(args.scenario, overrides_of(args))
     except ScenarioError as exc:
-        print(f"error: {exc}", file=stderr)
+        print(f"error: {exc if exc.file else exc.with_file(str(args.scenario))}", file=stderr)
         return EXIT_USAGE
     try:
         key = SwarmKey.from_file(args.key_file) if args.key_file else SwarmKey.from_env()

@@ -3,15 +3,30 @@
 ``GET /``, ``/view.js`` and ``/view.css`` are answered from the host's assets with
 a Content-Security-Policy and the connection closed (one request per connection);
 ``GET /ws`` with a WebSocket handshake becomes a :class:`Viewer`. Anything else
-gets the HTTP status that says why. Nothing here arms a timer: the connection
-lives on whatever loop the server runs on, virtual time included.
+gets the HTTP status that says why: a repeated ``Host`` (or any header the server
+reads) is refused, 400, as RFC 9112 asks, since two servers could read two hosts.
+
+Nothing here arms a timer: the server's sweep (from a thread, on the wall clock)
+calls :meth:`Connection.check`, which answers a request head that is not complete
+after the request timeout with 408, cuts a connection that does not take its answer
+or close frame as fast, pings a viewer that has been silent for a while and closes
+one that stays silent (:class:`~cas_async.live._limits.ServerLimits`). The transport
+may be asyncio's or uvloop's (which is no ``asyncio.Transport`` subclass).
+
+Nothing a client sends ends in a traceback: what the server's handlers raise on a
+viewer's message closes that viewer (1011) and is logged at its 1st, 10th, 100th...
+occurrence.
 """
 
 from __future__ import annotations
 
 import asyncio
-from typing import Final, Protocol
+import logging
+from collections.abc import Callable
+from functools import partial
+from typing import Final, Protocol, cast
 
+from ._limits import BUSY_LINGER, ServerLimits
 from ._viewer import HIGH_WATER, Viewer
 from ._websocket import CloseCode, FrameReader, Opcode, ProtocolError, accept_key
 
@@ -19,8 +34,28 @@ __all__ = ["CSP", "Connection", "Host"]
 
 REQUEST_LIMIT: Final = 16 * 1024
 """Bytes of an HTTP request head; a longer one is refused (431)."""
-MESSAGE_LIMIT: Final = 64 * 1024
-"""Bytes of a viewer's message (the page sends a few dozen)."""
+MESSAGE_LIMIT: Final = 4 * 1024
+"""Bytes of a viewer's message (the page sends a few dozen: a seek)."""
+_SINGLE: Final = frozenset(
+    {
+        "host",
+        "origin",
+        "upgrade",
+        "connection",
+        "sec-websocket-key",
+        "sec-websocket-version",
+        "content-length",
+        "transfer-encoding",
+    }
+)
+"""Headers a request may hold once at most (two ``Host`` could name two servers)."""
+_BUSY: Final = (
+    b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain; charset=utf-8\r\n"
+    b"Content-Length: 40\r\nRetry-After: 5\r\nCache-Control: no-store\r\n"
+    b"Connection: close\r\n\r\nthe view serves all the viewers it can\r\n"
+)
+_log = logging.getLogger("cas_async.live")
+_failures = [0]  # handlers' failures on a viewer's message, in this process (logged sparsely)
 CSP: Final = (
     "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
     "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
@@ -31,6 +66,7 @@ _REASONS: Final = {
     403: "Forbidden",
     404: "Not Found",
     405: "Method Not Allowed",
+    408: "Request Timeout",
     426: "Upgrade Required",
     431: "Request Header Fields Too Large",
 }
@@ -43,6 +79,16 @@ class Host(Protocol):
     def assets(self) -> dict[str, tuple[bytes, str]]:
         """The files served, by path: their bytes and content type."""
 
+    @property
+    def limits(self) -> ServerLimits:
+        """The server's limits (time-outs, connections)."""
+
+    def now(self) -> float:
+        """The wall clock, in seconds."""
+
+    def admit(self, connection: Connection) -> bool:
+        """A new connection: whether it is served (``False``: the server is full)."""
+
     def refuse(self, headers: dict[str, str]) -> str | None:
         """Why a request with these headers is refused, or ``None``."""
 
@@ -52,8 +98,8 @@ class Host(Protocol):
     def received(self, viewer: Viewer, text: str) -> None:
         """A viewer sent a text message."""
 
-    def lost(self, viewer: Viewer) -> None:
-        """A viewer's connection is gone."""
+    def lost(self, connection: Connection, viewer: Viewer | None) -> None:
+        """A connection is gone (with its viewer, if it had become one)."""
 
 
 class Connection(asyncio.Protocol):
@@ -66,13 +112,64 @@ class Connection(asyncio.Protocol):
         self._viewer: Viewer | None = None
         self._reader = FrameReader(MESSAGE_LIMIT)
         self._draining = False  # after a protocol error: read, drop, until the client closes
+        self._phase = "head"  # head, closing (answered), websocket, draining, busy
+        self._since = 0.0  # when the phase began (the server's wall clock)
+        self._heard = 0.0  # when the client last sent anything
+        self._pinged = False  # since it was last heard
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        assert isinstance(transport, asyncio.Transport)
-        self._transport = transport
-        transport.set_write_buffer_limits(high=HIGH_WATER)
+        # uvloop's TCPTransport has every method of asyncio.Transport, but is no subclass.
+        self._transport = cast(asyncio.Transport, transport)
+        self._transport.set_write_buffer_limits(high=HIGH_WATER)
+        self._since = self._heard = self._server.now()
+        if not self._server.admit(self):
+            self._turn_away()
+
+    def _turn_away(self) -> None:
+        """The server is full: 503, then a half-close (what the client sends is dropped)."""
+        transport = self._transport
+        assert transport is not None
+        self._enter("busy")
+        self._draining = True
+        transport.write(_BUSY)
+        if transport.can_write_eof():
+            transport.write_eof()
+        else:
+            transport.close()
+
+    def _enter(self, phase: str) -> None:
+        self._phase, self._since = phase, self._server.now()
+
+    def check(self, now: float) -> None:
+        """The server's sweep: time-outs, pings (see the module docs)."""
+        transport = self._transport
+        if transport is None:
+            return
+        limits = self._server.limits
+        phase, age = self._phase, now - self._since
+        if phase == "head" and age > limits.request_timeout:
+            self._respond(408, b"the request head did not come in time\n")
+        elif (phase == "busy" and age > BUSY_LINGER) or (
+            phase in ("closing", "draining") and age > limits.request_timeout
+        ):
+            transport.abort()  # it does not take what we said, nor close its side
+        elif phase == "websocket" and self._viewer is not None:
+            silent = now - self._heard
+            if silent > limits.idle_timeout:
+                self._viewer.close(CloseCode.GOING_AWAY, "idle")
+                self._enter("closing")
+            elif silent > limits.ping_every and not self._pinged:
+                self._pinged = True
+                self._viewer.control(Opcode.PING, b"")
+
+    def cut(self, *, viewers: bool = False) -> None:
+        """Aborts the connection (a viewer's only when ``viewers``: it is closed otherwise)."""
+        if self._transport is not None and (viewers or self._viewer is None):
+            self._transport.abort()
 
     def data_received(self, data: bytes) -> None:
+        self._heard = self._server.now()
+        self._pinged = False
         if self._draining:
             return
         if self._viewer is not None:
@@ -105,7 +202,11 @@ class Connection(asyncio.Protocol):
             if not colon:
                 self._respond(400, b"a header line without a colon\n")
                 return
-            headers[name.strip().lower()] = value.strip()
+            name = name.strip().lower()
+            if name in headers and name in _SINGLE:
+                self._respond(400, f"a repeated {name} header\n".encode("latin-1"))
+                return
+            headers[name] = value.strip()
         path = target.partition("?")[0]
         problem = self._server.refuse(headers)
         if problem is not None:
@@ -142,14 +243,37 @@ class Connection(asyncio.Protocol):
             ).encode("ascii")
         )
         self._viewer = viewer = Viewer(transport)
-        self._server.opened(viewer)
+        self._enter("websocket")
+        self._guarded(viewer, lambda: self._server.opened(viewer))
+
+    def _guarded(self, viewer: Viewer, call: Callable[[], None]) -> None:
+        """Runs a handler of the server's for ``viewer``; what it raises closes only that viewer."""
+        try:
+            call()
+        except ProtocolError as error:  # the client's message broke the view's protocol
+            self._fail(viewer, error.code, error.reason)
+        except Exception as exc:  # a bug, or input no check foresaw: this viewer alone goes
+            _failures[0] += 1
+            if _is_power_of_ten(_failures[0]):
+                _log.error(
+                    "live view: a viewer closed (1011) after the server failed on it: %s: %s "
+                    "(%d so far)",
+                    type(exc).__name__,
+                    str(exc)[:200],
+                    _failures[0],
+                )
+            self._fail(viewer, CloseCode.INTERNAL_ERROR, "server error")
+
+    def _fail(self, viewer: Viewer, code: CloseCode, reason: str) -> None:
+        self._draining = True
+        self._enter("draining")
+        viewer.fail(code, reason)
 
     def _websocket_data(self, viewer: Viewer, data: bytes) -> None:
         try:
             messages = self._reader.feed(data)
         except ProtocolError as error:
-            self._draining = True
-            viewer.fail(error.code, error.reason)
+            self._fail(viewer, error.code, error.reason)
             return
         for message in messages:
             if message.opcode is Opcode.PING:
@@ -158,14 +282,17 @@ class Connection(asyncio.Protocol):
                 code = message.payload[:2] if len(message.payload) >= 2 else b""
                 viewer.control(Opcode.CLOSE, code)
                 viewer.closed = True
+                self._enter("closing")
                 if self._transport is not None:
                     self._transport.close()
                 return
             elif message.opcode is Opcode.TEXT:
-                self._server.received(viewer, message.payload.decode("utf-8"))
+                text = message.payload.decode("utf-8")
+                self._guarded(viewer, partial(self._server.received, viewer, text))
+                if self._draining:
+                    return
             elif message.opcode is Opcode.BINARY:
-                self._draining = True
-                viewer.fail(CloseCode.UNSUPPORTED, "this server reads text messages only")
+                self._fail(viewer, CloseCode.UNSUPPORTED, "this server reads text messages only")
                 return
 
     def _respond(
@@ -189,6 +316,7 @@ class Connection(asyncio.Protocol):
         head = f"HTTP/1.1 {status} {_REASONS[status]}\r\n" + "".join(
             f"{name}: {value}\r\n" for name, value in headers.items()
         )
+        self._enter("closing")
         transport.write(head.encode("latin-1") + b"\r\n" + body)
         transport.close()
 
@@ -204,6 +332,13 @@ class Connection(asyncio.Protocol):
             self._viewer.resume()
 
     def connection_lost(self, exc: Exception | None) -> None:
+        self._transport = None
         if self._viewer is not None:
             self._viewer.closed = True
-            self._server.lost(self._viewer)
+        self._server.lost(self, self._viewer)
+
+
+def _is_power_of_ten(n: int) -> bool:
+    while n >= 10 and n % 10 == 0:
+        n //= 10
+    return n == 1

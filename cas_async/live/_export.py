@@ -4,12 +4,12 @@ The bag opens in Foxglove, Lichtblick, ``ros2 bag play`` and Rerun. Its topics,
 all in frame ``world`` (x right, y up, z 0), stamped with simulated time (a
 message at simulated second ``t`` has the timestamp ``t`` s after the epoch):
 
-* ``/robots``: ``geometry_msgs/PoseArray``, one per sample: every robot, in the
+* ``/robots``: ``geometry_msgs/msg/PoseArray``, one per sample: every robot, in the
   trace's order (positions only: the trace holds no heading);
 * ``/robots/<group>``: the same per group (``/robots/transporter``), so a tool
   can colour them by role; ``/carriers``: the robots carrying something;
-* ``/measures/<name>``: ``std_msgs/Float64``, one per sample of each measure;
-* ``/scene``: ``visualization_msgs/MarkerArray``, once at time 0: the world's
+* ``/measures/<name>``: ``std_msgs/msg/Float64``, one per sample of each measure;
+* ``/scene``: ``visualization_msgs/msg/MarkerArray``, once at time 0: the world's
   bounds and the application's static scene (discs as cylinders, rectangles
   as cubes, lines as line strips, spots as spheres, labels as text).
 """
@@ -27,9 +27,12 @@ from ._protocol import OTHER, colors_for
 from ._recording import Recording
 from ._ros2 import DEFINITIONS
 
-__all__ = ["export_mcap"]
+__all__ = ["export_mcap", "schema_name"]
 
 FRAME: Final = "world"
+_POSES: Final = "geometry_msgs/PoseArray"
+_NUMBER: Final = "std_msgs/Float64"
+_MARKERS: Final = "visualization_msgs/MarkerArray"
 _MARKER = {"CUBE": 1, "SPHERE": 2, "CYLINDER": 3, "LINE_STRIP": 4, "TEXT": 9}
 _THIN: Final = 0.05  # height of flat shapes, width of lines, in world units
 
@@ -54,10 +57,7 @@ def export_mcap(run_dir: Path, out: Path) -> int:
     """
     writer_type = _import_writer()
     recording = Recording(run_dir)
-    groups = {
-        name: [int(robot) for robot in ids]
-        for name, ids in recording.results.get("groups", {}).items()
-    }
+    groups = recording.groups
     rows = {robot: k for k, robot in enumerate(recording.robots)}
     topics = {
         f"/robots/{_slug(name)}": [rows[r] for r in ids if r in rows]
@@ -65,12 +65,9 @@ def export_mcap(run_dir: Path, out: Path) -> int:
     }
     with atomic_binary_file(Path(out)) as stream:  # whole or not at all
         writer = writer_type(stream)
-        poses = writer.register_msgdef(
-            "geometry_msgs/PoseArray", DEFINITIONS["geometry_msgs/PoseArray"]
-        )
-        number = writer.register_msgdef("std_msgs/Float64", DEFINITIONS["std_msgs/Float64"])
-        markers = writer.register_msgdef(
-            "visualization_msgs/MarkerArray", DEFINITIONS["visualization_msgs/MarkerArray"]
+        poses, number, markers = (
+            writer.register_msgdef(schema_name(datatype), DEFINITIONS[datatype])
+            for datatype in (_POSES, _NUMBER, _MARKERS)
         )
         colors = colors_for(list(groups), recording.scene)
         scene = _markers(recording.scene, recording.world, colors)
@@ -98,13 +95,23 @@ def export_mcap(run_dir: Path, out: Path) -> int:
     return len(recording)
 
 
+def schema_name(datatype: str) -> str:
+    """A channel's schema name as rosbag2 writes it: ``geometry_msgs/msg/PoseArray``.
+
+    The definitions' own ``MSG:`` lines keep the short form (``MSG: geometry_msgs/Pose``),
+    as rosbag2's do.
+    """
+    package, _, name = datatype.partition("/")
+    return f"{package}/msg/{name}"
+
+
 def _slug(name: str) -> str:
     """A topic name's part: lower case, letters, digits and underscores."""
     return re.sub(r"[^a-z0-9_]+", "_", name.lower()).strip("_") or "unnamed"
 
 
 def _stamp(t: float) -> dict[str, int]:
-    nanoseconds = round(t * 1e9)
+    nanoseconds = round(t * 1e9)  # t is from 0 to 1e9 (checked when read): int32 seconds
     return {"sec": nanoseconds // 1_000_000_000, "nanosec": nanoseconds % 1_000_000_000}
 
 

@@ -35,6 +35,7 @@ from .. import ConfigurationError, VirtualTimeLoop
 from ..scenario import ScenarioRun
 from ..sim import ItemEvent, ItemEventKind
 from ..transport import InsecureBindWarning
+from ._limits import ServerLimits
 from ._pacer import Pacer, wall_bounded
 from ._protocol import encode_frame, hello, text
 from ._server import ViewServer, is_loopback
@@ -66,6 +67,7 @@ class LiveView:
             its own); the view closes it.
         wall_clock: reads the wall clock (seconds).
         block: blocks the loop's thread for some wall seconds (pacing only).
+        limits: the server's time-outs and cap on connections.
 
     Raises:
         ValueError: ``fps`` or ``pace`` is not a positive number.
@@ -83,6 +85,7 @@ class LiveView:
         sock: socket.socket | None = None,
         wall_clock: Callable[[], float] = time.perf_counter,
         block: Callable[[float], None] = time.sleep,
+        limits: ServerLimits | None = None,
     ) -> None:
         if not (0 < fps < math.inf):
             raise ValueError(f"LiveView: fps must be a positive number, got {fps!r}")
@@ -96,7 +99,7 @@ class LiveView:
         self._pacer = None if pace is None else Pacer(
             pace, wall_clock=wall_clock, block=block, stopping=self._stopping
         )  # fmt: skip
-        self._server = ViewServer(self._opened)
+        self._server = ViewServer(self._opened, limits=limits)
         self._ids = list(run.trace.ids)
         self._measures = dict(run.mission.measures)
         self._seq = -1
@@ -174,6 +177,7 @@ class LiveView:
         )
         server.close()
         await wall_bounded(server.gone(), CLOSE_LIMIT)
+        server.abort()  # those that did not take their close frame in time
 
     @property
     def url(self) -> str:

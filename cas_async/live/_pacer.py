@@ -13,19 +13,24 @@ would let it race on. Two tools here:
   the loop stand still: their results are the same with or without pacing.
 * :func:`~cas_async.wall_bounded` (re-exported here) awaits something for at
   most some wall seconds, on any loop (a thread's timer ends the wait: the loop's
-  own clock may be virtual).
+  own clock may be virtual);
+* :class:`WallTicker` calls a function on the loop every so many wall seconds, from
+  a thread (the view's server sweeps its connections so: a loop timer would be
+  virtual).
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import threading
 import time
 from collections.abc import Callable
 from typing import Final, final
 
 from .. import wall_bounded
 
-__all__ = ["Pacer", "wall_bounded"]
+__all__ = ["Pacer", "WallTicker", "wall_bounded"]
 
 
 SLICE: Final = 0.01
@@ -84,3 +89,36 @@ class Pacer:
             later = self._wall_clock()
             self.held += later - now
             now = later
+
+
+@final
+class WallTicker:
+    """Calls ``callback`` on ``loop`` every ``period`` wall seconds, until closed.
+
+    A daemon thread waits on the wall clock and hands the call to the loop
+    (``call_soon_threadsafe``), so the callback runs on the loop's thread, between
+    its other callbacks, whatever the loop's own clock says.
+    """
+
+    def __init__(
+        self, loop: asyncio.AbstractEventLoop, period: float, callback: Callable[[], None]
+    ) -> None:
+        self._loop = loop
+        self._period = period
+        self._callback = callback
+        self._stopped = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="cas_async wall ticker", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stopped.wait(self._period):
+            with contextlib.suppress(RuntimeError):  # the loop closed: nothing left to sweep
+                self._loop.call_soon_threadsafe(self._tick)
+
+    def _tick(self) -> None:
+        if not self._stopped.is_set():
+            self._callback()
+
+    def close(self) -> None:
+        """Stops calling (the thread ends within a period); idempotent."""
+        self._stopped.set()

@@ -29,8 +29,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ..scenario import Scene
+from ._websocket import CloseCode, ProtocolError
 
 __all__ = [
+    "CLIENT_DEPTH",
     "FRAME_MAGIC",
     "HEADER",
     "PROTOCOL",
@@ -41,6 +43,7 @@ __all__ = [
     "decode_frame",
     "encode_frame",
     "hello",
+    "read_client_message",
     "text",
 ]
 
@@ -135,8 +138,8 @@ def encode_frame(
         t,
         seq & 0xFFFFFFFF,
         n,
-        min(done, UNKNOWN),
-        min(detail, UNKNOWN),
+        min(max(done, 0), UNKNOWN),
+        min(max(detail, 0), UNKNOWN),
         len(measures),
         0,
     )
@@ -234,3 +237,50 @@ def _finite(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [_finite(item) for item in value]
     return value
+
+
+CLIENT_DEPTH: Final = 8
+"""Nesting of a viewer's JSON message, at most (a seek is 1 deep)."""
+
+
+def read_client_message(text: str) -> dict[str, Any] | None:
+    """A viewer's text message as a JSON object; ``None`` if it is no JSON object.
+
+    The message is at most :data:`~cas_async.live._connection.MESSAGE_LIMIT` bytes
+    (the frame reader refuses longer ones, 1009); its nesting is counted before it
+    is parsed, so no message costs more than a pass over its characters.
+
+    Raises:
+        ProtocolError: nested deeper than :data:`CLIENT_DEPTH` (close 1008).
+    """
+    if _depth(text) > CLIENT_DEPTH:
+        raise ProtocolError(
+            CloseCode.POLICY_VIOLATION, f"a message nested deeper than {CLIENT_DEPTH}"
+        )
+    try:
+        message = json.loads(text)
+    except (ValueError, RecursionError):  # not JSON (or its numbers too long): ignored
+        return None
+    return message if isinstance(message, dict) else None
+
+
+def _depth(text: str) -> int:
+    """How deep ``[`` and ``{`` nest in ``text``, outside JSON strings."""
+    depth = deepest = 0
+    inside = escaped = False
+    for char in text:
+        if inside:
+            if escaped:
+                escaped = False
+            elif char == "\\":
+                escaped = True
+            elif char == '"':
+                inside = False
+        elif char == '"':
+            inside = True
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth -= 1
+    return deepest

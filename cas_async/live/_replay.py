@@ -10,20 +10,25 @@ Nothing runs: everything comes from the run directory (:class:`Recording`).
 
 from __future__ import annotations
 
-import json
+import math
+import sys
 import warnings
 from pathlib import Path
-from typing import Any, final
+from typing import Any, Final, final
 
 from .. import ConfigurationError
 from ..transport import InsecureBindWarning
+from ._limits import ServerLimits
 from ._protocol import encode_frame, hello, text
-from ._recording import Recording, RecordingError
+from ._recording import Recording
+from ._run_files import RecordingError
 from ._server import ViewServer, is_loopback
 from ._viewer import Viewer
 from ._websocket import CloseCode
 
 __all__ = ["ReplayView"]
+
+_FLOAT_MAX: Final = int(sys.float_info.max)
 
 
 @final
@@ -37,15 +42,23 @@ class ReplayView:
         run_dir: a finished run's output directory.
         host: where to listen (loopback by default; another address warns).
         port: 0 picks a free one (:attr:`url` tells which).
+        limits: the server's time-outs and cap on connections.
 
     Raises:
         RecordingError: the directory cannot be replayed (naming the file at fault).
     """
 
-    def __init__(self, run_dir: Path, *, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(
+        self,
+        run_dir: Path,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        limits: ServerLimits | None = None,
+    ) -> None:
         self.recording = Recording(run_dir)
         self._host, self._port = host, port
-        self._server = ViewServer(self._opened, self._received)
+        self._server = ViewServer(self._opened, self._received, limits=limits)
         self._hello = text(self._hello_message())
 
     async def __aenter__(self) -> ReplayView:
@@ -85,7 +98,7 @@ class ReplayView:
 
     def _hello_message(self) -> dict[str, Any]:
         recording = self.recording
-        results = recording.results
+        info = recording.info
         events: list[dict[str, Any]] = [
             {"type": "exchange", "t": t, "count": count} for t, count in recording.exchanges
         ]
@@ -94,34 +107,27 @@ class ReplayView:
             for k, t in enumerate(recording.deliveries)
         ]
         events.sort(key=lambda event: float(event["t"]))
-        groups = results.get("groups", {})
-        kind = str(results.get("kind", "items"))  # an item mission's results name no kind
-        items = kind == "items"
+        kind = info["kind"]
         return hello(
             "replay",
-            app=str(results.get("app", "")),
-            scenario=str(results.get("scenario", "")),
-            seed=int(results.get("seed", 0)),
+            app=info["app"],
+            scenario=info["scenario"],
+            seed=info["seed"],
             world=recording.world,
             robots=recording.robots,
-            groups=groups if isinstance(groups, dict) else {},
+            groups=recording.groups,
             scene=recording.scene,
             measures=recording.measures,
-            target=int(results.get("target", 0)),
+            target=info["target"],
             words=(
-                str(results.get("item_name", "item")),
-                str(results.get("verb", "delivered" if items else "done")),
-                "exchanges" if items else "events",  # results.json keeps no name for it
+                info["item_name"],
+                info["verb"],
+                "exchanges" if kind == "items" else "events",  # results.json keeps no name for it
             ),
             kind=kind,
             times=recording.times,
             events=events,
-            end={
-                "t": results.get("sim_time"),
-                "status": results.get("status"),
-                "makespan": results.get("makespan"),
-                "done": results.get("delivered"),
-            },
+            end=info["end"],
         )
 
     def _opened(self, viewer: Viewer) -> None:
@@ -129,18 +135,23 @@ class ReplayView:
         if len(self.recording):
             self._send(viewer, 0)
 
-    def _received(self, viewer: Viewer, message: str) -> None:
-        """A viewer's request: ``{"type": "seek", "t": T}``; anything else is ignored."""
-        try:
-            request = json.loads(message)
-            t = float(request["t"]) if request.get("type") == "seek" else None
-        except (ValueError, TypeError, KeyError, AttributeError):
+    def _received(self, viewer: Viewer, message: dict[str, Any]) -> None:
+        """A viewer's request: ``{"type": "seek", "t": T}``; anything else is ignored.
+
+        ``T`` is a number: before the first sample, the first is sent; after the
+        last (an infinity, or an integer of 400 digits), the last.
+        """
+        t = message.get("t")
+        if message.get("type") != "seek" or isinstance(t, bool) or not isinstance(t, int | float):
             return
-        if t is not None and len(self.recording):
-            try:
-                self._send(viewer, self.recording.index_at(t))
-            except RecordingError as exc:  # a malformed row: say so, keep serving
-                viewer.send_text(text({"type": "error", "message": str(exc)}))
+        if isinstance(t, int):  # JSON integers have no bound; past a float's range, the end
+            t = (math.inf if t > 0 else -math.inf) if abs(t) > _FLOAT_MAX else float(t)
+        if math.isnan(t) or not len(self.recording):
+            return
+        try:
+            self._send(viewer, self.recording.index_at(t))
+        except RecordingError as exc:  # the file changed since it was read: say so, keep serving
+            viewer.send_text(text({"type": "error", "message": str(exc)}))
 
     def _send(self, viewer: Viewer, index: int) -> None:
         sample = self.recording.sample(index)

@@ -41,14 +41,18 @@ class Viewer:
 
     def send_frame(self, data: bytes) -> None:
         """Sends a binary frame now, or holds it back in place of the one held (see module docs)."""
+        self.send_framed(frame(Opcode.BINARY, data))
+
+    def send_framed(self, framed: bytes) -> None:
+        """:meth:`send_frame` of a message framed already (one framing for every viewer)."""
         if self.closed:
             return
         if self._paused:
             if self._latest is not None:
                 self.skipped_frames += 1
-            self._latest = frame(Opcode.BINARY, data)
+            self._latest = framed
             return
-        self._transport.write(frame(Opcode.BINARY, data))
+        self._transport.write(framed)
         self.sent_frames += 1
 
     def send_text(self, text: str) -> None:

@@ -49,7 +49,9 @@ class CloseCode(enum.IntEnum):
     PROTOCOL_ERROR = 1002
     UNSUPPORTED = 1003
     INVALID_DATA = 1007
+    POLICY_VIOLATION = 1008
     TOO_BIG = 1009
+    INTERNAL_ERROR = 1011
 
 
 class ProtocolError(Exception):

@@ -12,15 +12,25 @@ Time-outs and errors say what to fix:
   to ``cmd_vel`` and one that publishes ``odom`` (:class:`~cas_async.ros.RosTimeout`
   naming the nodes seen), refuses a robot whose topics have another type or type
   hash (``ConfigurationError`` naming both, e.g. a robot that wants ``TwistStamped``),
-  and waits for the first odometry;
+  and waits for the first odometry. A token of another type is anyone's to declare:
+  an endpoint of the right type seen within :data:`MISMATCH_GRACE` after it (or
+  before) is the robot's, and the start goes on;
 * a move raises :class:`~cas_async.ros.RosTimeout` when odometry stops for
   ``odom_timeout`` or the goal is not reached in ``move_timeout`` (by default three
   times the time the move should take, plus 5 s); the robot is told to stop first,
   as it is when a move is cancelled.
+
+Odometry is taken from a subscription that drops samples over :data:`ODOM_MAX_BYTES`
+and samples holding a NaN or an infinity (see :class:`~cas_async.ros.RosSubscription`);
+a pose that still cannot be used (a position past a float's range once moved into
+the layers' frame) is dropped and counted there too (``unusable_pose``). A move goes
+on with the next good odometry.
 """
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import math
 from collections.abc import Callable
 from typing import Any, Final, final
@@ -35,6 +45,7 @@ from .. import (
     Positions,
     RobotId,
     RobotStateError,
+    SimulationError,
     SpeedProfile,
 )
 from ._controller import DiffDriveController, DriveTuning
@@ -43,7 +54,13 @@ from ._exceptions import RosTimeout
 from ._graph import GraphEntity, Kind
 from ._link import RosLink
 
-__all__ = ["RosDiffDrive"]
+__all__ = ["MISMATCH_GRACE", "ODOM_MAX_BYTES", "RosDiffDrive"]
+
+ODOM_MAX_BYTES: Final = 4096
+"""Bytes of an odometry sample, at most (one is about 700, with two short frame ids)."""
+MISMATCH_GRACE: Final = 2.0
+"""Seconds (of the drive's clock) that an endpoint of the right type has to show up
+after one of another type was seen, before the start is refused."""
 
 _TWIST: Final = "geometry_msgs/msg/Twist"
 _STAMPED: Final = "geometry_msgs/msg/TwistStamped"
@@ -126,6 +143,7 @@ class RosDiffDrive(Middleware):
         self._move_timeout = move_timeout
         self._publisher: RosPublisher | None = None
         self._odometry: RosSubscription | None = None
+        self._pose: Pose | None = None  # the last odometry that made a pose
         self._moving = False
 
     # -- lifecycle ---------------------------------------------------------------------
@@ -143,28 +161,44 @@ class RosDiffDrive(Middleware):
             raise RobotStateError(f"robot {self._robot_id}: RosDiffDrive started already")
         cmd_vel, odom = self._topics
         self._publisher = self._link.publisher(cmd_vel, self._cmd_vel_type)
-        self._odometry = self._link.subscribe(odom, _ODOM)
+        self._odometry = self._link.subscribe(odom, _ODOM, max_bytes=ODOM_MAX_BYTES)
         try:
             wanted: tuple[tuple[str, Kind, GraphEntity], ...] = (
                 (cmd_vel, "MS", self._publisher.entity),
                 (odom, "MP", self._odometry.entity),
             )
             for topic, kind, ours in wanted:
-                peer = await self._link.wait_for(
-                    topic, kind, self._clock.loop_seconds(self._discovery_timeout)
-                )
-                self._check(
-                    topic,
-                    ours.type_name,
-                    ours.type_hash,
-                    peer.type_name,
-                    peer.type_hash,
-                    peer.node_fqn,
-                )
+                await self._find(topic, kind, ours)
             await self._next_odometry("start")
         except BaseException:
             self.close()
             raise
+
+    async def _find(self, topic: str, kind: Kind, ours: GraphEntity) -> None:
+        """Waits for the robot's endpoint on ``topic``: one of our type and hash.
+
+        Raises:
+            RosTimeout: no endpoint at all within ``discovery_timeout``.
+            ConfigurationError: only endpoints of another type or hash, still after
+                :data:`MISMATCH_GRACE` (naming the first such).
+        """
+        link, match = self._link, (ours.type_name, ours.type_hash)
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self._clock.loop_seconds(self._discovery_timeout)
+        peer = await link.wait_for(topic, kind, deadline - loop.time())
+        if (peer.type_name, peer.type_hash) == match:
+            return
+        grace = min(self._clock.loop_seconds(MISMATCH_GRACE), deadline - loop.time())
+        try:
+            await link.wait_for(topic, kind, max(grace, 0.0), match=match)
+            return
+        except RosTimeout:
+            pass
+        others = [e for e in link.endpoints(topic, kind) if (e.type_name, e.type_hash) != match]
+        peer = others[0] if others else peer
+        self._check(
+            topic, ours.type_name, ours.type_hash, peer.type_name, peer.type_hash, peer.node_fqn
+        )
 
     def _check(
         self, topic: str, our_type: str, our_hash: str, type_name: str, type_hash: str, node: str
@@ -229,11 +263,13 @@ class RosDiffDrive(Middleware):
             RobotStateError: not started (no odometry yet).
         """
         odometry = self._odometry
-        if odometry is None or odometry.latest is None:
+        if odometry is None or odometry.latest is None or self._pose is None:
             raise RobotStateError(
                 f"robot {self._robot_id}: no odometry yet (start RosDiffDrive first)"
             )
-        return self._world(odometry.latest)
+        with contextlib.suppress(SimulationError):  # counted when taken: the last good one stands
+            self._pose = self._world(odometry.latest)
+        return self._pose
 
     async def move_to(self, x: float, y: float) -> Pose:
         start = self.pose()
@@ -312,15 +348,21 @@ class RosDiffDrive(Middleware):
             raise RobotStateError(f"robot {self._robot_id}: RosDiffDrive is closed")
         try:
             async with self._clock.timeout(self._odom_timeout):
-                message = await odometry.receive()
-                while odometry.clear():  # act on the newest pose, not a backlog
-                    message = odometry.latest or message
+                while True:
+                    message = await odometry.receive()
+                    while odometry.clear():  # act on the newest pose, not a backlog
+                        message = odometry.latest or message
+                    try:
+                        self._pose = self._world(message)
+                    except SimulationError as exc:  # finite, yet no pose: the next one
+                        odometry.drop("unusable_pose", str(exc))
+                        continue
+                    return self._pose
         except TimeoutError:
             raise RosTimeout(
                 f"robot {self._robot_id}: no odometry on {odometry.topic} for "
                 f"{self._odom_timeout:g} s ({what}); is the robot's driver running?"
             ) from None
-        return self._world(message)
 
     def _world(self, odometry: dict[str, Any]) -> Pose:
         pose = odometry["pose"]["pose"]

@@ -6,9 +6,18 @@ A :class:`RosSubscription` is an async iterator of decoded messages: Zenoh's thr
 hands each sample to the link's :class:`~cas_async.transport.zenoh._thread_inbox.ThreadInbox`,
 and the loop decodes it here. Like an rmw_zenoh subscription it keeps the last
 ``depth`` messages (``KEEP_LAST``): a reader that falls behind loses the oldest,
-counted as ``overflow``. A sample with no or a malformed attachment (rmw_zenoh drops
-those too) or with bytes that are not the type's CDR is dropped and counted, and the
-first drop of each reason is logged: nothing is lost silently.
+counted as ``overflow``. A sample is dropped and counted by reason when it has no
+or a malformed attachment (rmw_zenoh drops those too), is longer than the
+subscription's ``max_bytes`` (``oversize``: measured on Zenoh's thread, before it is
+copied), is not the type's CDR (``malformed_cdr``) or holds a number that is not
+finite (``non_finite``: a NaN pose from a glitching driver, or from anyone on the
+robot's router): only values a layer can use reach it. Each reason is logged at its
+1st, 10th, 100th... drop: nothing is lost silently, and a flood costs a few lines.
+
+Per publisher (GID) the subscription keeps the last sequence number, to count what
+never arrived (``lost``), for the :data:`SEQUENCE_PEERS` publishers heard from
+last; a jump of more than :data:`SEQUENCE_JUMP` is a publisher that restarted (or
+a forged number), counted in ``sequence_jumps``, not as lost samples.
 """
 
 from __future__ import annotations
@@ -16,9 +25,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections import deque
+import math
+from collections import OrderedDict, deque
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from .. import RobotStateError
 from ._attachment import Attachment
@@ -27,9 +37,42 @@ from ._graph import GraphEntity, entity_gid
 if TYPE_CHECKING:
     from ._message_types import RosType
 
-__all__ = ["RosPublisher", "RosSubscription"]
+__all__ = [
+    "DEFAULT_MAX_BYTES",
+    "SEQUENCE_JUMP",
+    "SEQUENCE_PEERS",
+    "RosPublisher",
+    "RosSubscription",
+    "all_finite",
+    "is_power_of_ten",
+]
+
+DEFAULT_MAX_BYTES: Final = 1024 * 1024
+"""Bytes of a sample, at most, for a type with no bound of its own (an unbounded string)."""
+SEQUENCE_PEERS: Final = 256
+"""Publishers whose last sequence number a subscription keeps (the latest heard from)."""
+SEQUENCE_JUMP: Final = 10_000
+"""A sequence number this far past the last is a restart (or a forgery), not lost samples."""
 
 _log = logging.getLogger("cas_async.ros")
+
+
+def is_power_of_ten(n: int) -> bool:
+    """Whether ``n`` is 1, 10, 100, ...: when the n-th of a kind of event is logged."""
+    while n >= 10 and n % 10 == 0:
+        n //= 10
+    return n == 1
+
+
+def all_finite(value: Any) -> bool:
+    """Whether every float in a decoded message (dicts and lists of them) is finite."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, dict):
+        return all(all_finite(item) for item in value.values())
+    if isinstance(value, list):
+        return all(all_finite(item) for item in value)
+    return True
 
 
 class RosPublisher:
@@ -102,25 +145,40 @@ class RosSubscription:
         ros_type: the message type.
         entity: the subscription as the ROS graph sees it (its token).
         depth: how many messages wait for the reader at most.
+        max_bytes: the longest sample taken, in bytes (longer: dropped, ``oversize``).
+        finite: whether a message with a NaN or an infinity is dropped (``non_finite``).
         latest: the last message decoded (``None`` before the first), read or not.
         received: samples decoded and queued.
         lost: samples the publishers' sequence numbers say never arrived.
+        sequence_jumps: sequence numbers far past a publisher's last (restarts, forgeries).
         dropped: samples dropped, by reason (``no_attachment``, ``bad_attachment``,
-            ``malformed_cdr``, ``overflow``).
+            ``oversize``, ``malformed_cdr``, ``non_finite``, ``overflow``, and what
+            a reader counts with :meth:`drop`).
     """
 
-    def __init__(self, entity: GraphEntity, ros_type: RosType, depth: int) -> None:
+    def __init__(
+        self,
+        entity: GraphEntity,
+        ros_type: RosType,
+        depth: int,
+        *,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+        finite: bool = True,
+    ) -> None:
         self.topic = entity.topic
         self.ros_type = ros_type
         self.entity = entity
         self.depth = depth
+        self.max_bytes = max_bytes
+        self.finite = finite
         self.latest: dict[str, Any] | None = None
         self.received = 0
         self.lost = 0
+        self.sequence_jumps = 0
         self.dropped: dict[str, int] = {}
         self._queue: deque[dict[str, Any]] = deque()
         self._waiter: asyncio.Future[None] | None = None
-        self._last_sequence: dict[bytes, int] = {}
+        self._last_sequence: OrderedDict[bytes, int] = OrderedDict()
         self._declared: list[Any] = []
         self._closed = False
 
@@ -128,45 +186,74 @@ class RosSubscription:
         """Called by the link: the Zenoh subscriber and token this subscription owns."""
         self._declared.extend(declared)
 
+    def taken(self, size: int) -> bool:
+        """Whether a sample of ``size`` bytes is taken (called on Zenoh's thread: no state)."""
+        return size <= self.max_bytes
+
+    def refuse_oversize(self, size: int) -> None:
+        """Called on the loop for a sample :meth:`taken` refused: counts it."""
+        if not self._closed:
+            self.drop("oversize", f"{size:,} bytes, more than the {self.max_bytes:,} taken")
+
     def deliver(self, payload: bytes, attachment: bytes | None) -> None:
         """Called on the loop with one sample from Zenoh: decodes and queues it, or drops it."""
         if self._closed:
             return
         if attachment is None:
-            self._drop("no_attachment", "a sample without rmw_zenoh's attachment")
+            self.drop("no_attachment", "a sample without rmw_zenoh's attachment")
             return
         try:
             info = Attachment.from_bytes(attachment)
         except ValueError as exc:
-            self._drop("bad_attachment", str(exc))
+            self.drop("bad_attachment", str(exc))
+            return
+        if len(payload) > self.max_bytes:
+            self.drop("oversize", f"{len(payload):,} bytes, more than the {self.max_bytes:,} taken")
             return
         try:
             message = self.ros_type.decode(payload)
         except Exception as exc:  # rosbags' SerdeError and whatever malformed bytes cause
-            self._drop("malformed_cdr", f"{len(payload)} bytes: {exc}")
+            self.drop("malformed_cdr", f"{len(payload)} bytes: {str(exc)[:200]}")
             return
-        last = self._last_sequence.get(info.gid)
-        if last is not None and info.sequence > last + 1:
-            self.lost += info.sequence - last - 1
-        self._last_sequence[info.gid] = info.sequence
+        if self.finite and not all_finite(message):
+            self.drop("non_finite", "a number that is not finite (NaN or infinity)")
+            return
+        self._count_sequence(info.gid, info.sequence)
         self.received += 1
         self.latest = message
         if len(self._queue) >= self.depth:
             self._queue.popleft()
-            self._drop("overflow", f"the reader is more than {self.depth} messages behind")
+            self.drop("overflow", f"the reader is more than {self.depth} messages behind")
         self._queue.append(message)
         waiter = self._waiter
         if waiter is not None and not waiter.done():
             waiter.set_result(None)
 
-    def _drop(self, reason: str, detail: str) -> None:
+    def _count_sequence(self, gid: bytes, sequence: int) -> None:
+        last = self._last_sequence.pop(gid, None)
+        if last is not None and sequence > last + 1:
+            if sequence - last > SEQUENCE_JUMP:
+                self.sequence_jumps += 1
+            else:
+                self.lost += sequence - last - 1
+        self._last_sequence[gid] = sequence  # the newest last: the oldest go first
+        if len(self._last_sequence) > SEQUENCE_PEERS:
+            self._last_sequence.popitem(last=False)
+
+    def drop(self, reason: str, detail: str) -> None:
+        """Counts a message dropped for ``reason`` (logged at the 1st, 10th, 100th... of it).
+
+        The subscription counts its own drops; a reader that cannot use a message it
+        received (a pose out of any range) counts it here too.
+        """
         count = self.dropped[reason] = self.dropped.get(reason, 0) + 1
-        if count == 1:
+        if is_power_of_ten(count):
             _log.warning(
-                "ROS subscription %s dropped %s (%s): %s",
+                "ROS subscription %s dropped %s (%s, %d so far): %s",
                 self.topic,
                 reason,
                 self.ros_type.name,
+                count,
                 detail,
             )
 

@@ -13,6 +13,14 @@ A peer whose token shows one of our topics with another type or type hash can
 never hear us nor we it (the keys differ): the link warns
 (:class:`~cas_async.ros.RosTypeMismatchWarning`, naming both hashes) and keeps the
 case in :attr:`RosLink.mismatches`.
+
+Anyone on the robot's router can declare tokens and publish samples, so what a
+stranger can make the link keep or say is bounded: the graph holds at most
+:data:`GRAPH_LIMIT` entities (our own always), :attr:`RosLink.mismatches` at most
+:data:`MISMATCH_LIMIT` (the rest counted), and a malformed token or a mismatch is
+warned about at its 1st, 10th, 100th... occurrence, with the count. A sample longer
+than its subscription's ``max_bytes`` is refused on Zenoh's thread before it is
+copied (see :class:`~cas_async.ros.RosSubscription`).
 """
 
 from __future__ import annotations
@@ -29,7 +37,7 @@ from typing import Any, Final, Literal
 
 from .. import ConfigurationError, RobotStateError
 from ..transport.zenoh import ThreadInbox, loopback_config
-from ._endpoints import RosPublisher, RosSubscription
+from ._endpoints import DEFAULT_MAX_BYTES, RosPublisher, RosSubscription, is_power_of_ten
 from ._exceptions import RosTimeout, RosTypeMismatchWarning
 from ._extra import import_zenoh
 from ._graph import ADMIN_SPACE, GraphEntity, Kind, parse_token
@@ -37,13 +45,22 @@ from ._message_types import DISTRO, TypeCatalog
 from ._names import data_key, resolve_topic, validate_namespace, validate_node_name
 from ._qos import History, QoS, Reliability
 
-__all__ = ["RosLink", "TypeMismatch"]
+__all__ = ["GRAPH_LIMIT", "MISMATCH_LIMIT", "ZENOH_MESSAGE_LIMIT", "RosLink", "TypeMismatch"]
+
+GRAPH_LIMIT: Final = 10_000
+"""Entities of other sessions the link's graph holds, at most (the rest counted)."""
+MISMATCH_LIMIT: Final = 256
+"""Type mismatches :attr:`RosLink.mismatches` keeps, at most (the rest counted)."""
+ZENOH_MESSAGE_LIMIT: Final = 1024**3
+"""The largest message Zenoh takes by default (``transport/link/rx/max_message_size``)."""
 
 _log = logging.getLogger("cas_async.ros")
 _ENDPOINT: Final = re.compile(
     r"(tcp|udp|tls|quic|ws)/(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.\-]+):\d{1,5}"
 )
-_Entry = tuple[RosSubscription | None, str | bytes, bytes | bool | None]
+_Entry = tuple[RosSubscription | None, str | bytes | int, bytes | bool | None]
+"""A token (``None``, its key, whether it was put), a sample (the subscription, its
+bytes, its attachment), or a sample refused for its size (the subscription, its size)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,9 +150,15 @@ class RosLink:
         self._graph: dict[str, GraphEntity] = {}
         self._waiters: list[asyncio.Future[None]] = []
         self.mismatches: list[TypeMismatch] = []
-        """Peers' endpoints on our topics with another type or hash, as they were seen."""
+        """Peers' endpoints on our topics with another type or hash, as they were seen
+        (the first :data:`MISMATCH_LIMIT`)."""
+        self._mismatched: set[TypeMismatch] = set()
+        self.mismatches_dropped = 0
+        """Mismatches seen past :data:`MISMATCH_LIMIT`, counted only."""
         self.bad_tokens = 0
         """Liveliness tokens under ``@ros2_lv`` that rmw_zenoh would refuse too."""
+        self.graph_overflow = 0
+        """Tokens of other sessions not kept: the graph held :data:`GRAPH_LIMIT` already."""
 
     # -- the session -------------------------------------------------------------------
 
@@ -302,27 +325,59 @@ class RosLink:
         self._add(endpoint)
         return endpoint
 
-    def subscribe(self, topic: str, ros_type: str, *, qos: QoS | None = None) -> RosSubscription:
+    def subscribe(
+        self,
+        topic: str,
+        ros_type: str,
+        *,
+        qos: QoS | None = None,
+        max_bytes: int | None = None,
+        finite: bool = True,
+    ) -> RosSubscription:
         """Messages of ``ros_type`` on ``topic``, as an async iterator of plain values.
 
-        ``qos.depth`` (default 10) messages wait for the reader at most.
+        ``qos.depth`` (default 10) messages wait for the reader at most. A sample
+        longer than ``max_bytes`` is dropped before it is copied (``oversize``); by
+        default the type's own bound (:attr:`RosType.max_size`) or, for a type with
+        an unbounded string or sequence, :data:`~cas_async.ros._endpoints.DEFAULT_MAX_BYTES`
+        (1 MiB). With ``finite`` (the default), a message holding a NaN or an infinity
+        is dropped (``non_finite``); pass ``finite=False`` for types whose infinities
+        mean something (REP 117: ``sensor_msgs/msg/LaserScan``'s out-of-range readings).
 
         Raises:
-            ConfigurationError: a bad topic name, an unknown type, or a depth < 1.
+            ConfigurationError: a bad topic name, an unknown type, a depth < 1, or a
+                ``max_bytes`` below 1 or above what Zenoh takes.
             RobotStateError: the link is not open.
         """
         session = self._open_session()
         message, name, qos = self.types.get(ros_type), self.resolve(topic), qos or QoS()
         if qos.depth < 1:
             raise ConfigurationError(f"subscription depth must be >= 1, got {qos.depth}")
+        if max_bytes is None:
+            max_bytes = message.max_size or DEFAULT_MAX_BYTES
+        if (
+            isinstance(max_bytes, bool)
+            or not isinstance(max_bytes, int)
+            or not (1 <= max_bytes <= ZENOH_MESSAGE_LIMIT)
+        ):
+            raise ConfigurationError(
+                f"subscription max_bytes must be an int from 1 to {ZENOH_MESSAGE_LIMIT:,} "
+                f"(Zenoh's own limit), got {max_bytes!r}"
+            )
         entity = self._entity(
             "MS", topic=name, type_name=message.dds_name, type_hash=message.type_hash, qos=qos
         )
-        subscription = RosSubscription(entity, message, qos.depth)
+        subscription = RosSubscription(
+            entity, message, qos.depth, max_bytes=max_bytes, finite=finite
+        )
         inbox = self._inbox
         assert inbox is not None
 
-        def on_sample(sample: Any) -> None:
+        def on_sample(sample: Any) -> None:  # on Zenoh's thread
+            size = len(sample.payload)
+            if not subscription.taken(size):  # before it is copied
+                inbox.put((subscription, size, None))
+                return
             attachment = sample.attachment
             inbox.put(
                 (
@@ -363,17 +418,35 @@ class RosLink:
             if e.topic == name and e.zid != self._zid and (kind is None or e.kind == kind)
         ]
 
-    async def wait_for(self, topic: str, kind: Kind, timeout: float) -> GraphEntity:
+    async def wait_for(
+        self,
+        topic: str,
+        kind: Kind,
+        timeout: float,
+        *,
+        match: tuple[str, str] | None = None,
+    ) -> GraphEntity:
         """The first other endpoint of ``kind`` on ``topic``, once its token is seen.
+
+        With ``match`` (a DDS type name and a type hash), the first whose type and
+        hash are these: a stranger's token of another type, seen first, is passed by.
 
         Raises:
             RosTimeout: none within ``timeout`` seconds (the message lists the nodes seen).
             RobotStateError: the link closed meanwhile.
         """
         name = self.resolve(topic)
+
+        def found_now() -> list[GraphEntity]:
+            return [
+                entity
+                for entity in self.endpoints(name, kind)
+                if match is None or (entity.type_name, entity.type_hash) == match
+            ]
+
         try:
             async with asyncio.timeout(timeout):
-                while not (found := self.endpoints(name, kind)):
+                while not (found := found_now()):
                     self._open_session()
                     waiter = asyncio.get_running_loop().create_future()
                     self._waiters.append(waiter)
@@ -397,8 +470,10 @@ class RosLink:
         changed = False
         for target, key_or_payload, extra in entries:
             if target is not None:
-                assert isinstance(key_or_payload, bytes)
-                target.deliver(key_or_payload, extra if isinstance(extra, bytes) else None)
+                if isinstance(key_or_payload, int):  # refused for its size, not copied
+                    target.refuse_oversize(key_or_payload)
+                elif isinstance(key_or_payload, bytes):
+                    target.deliver(key_or_payload, extra if isinstance(extra, bytes) else None)
                 continue
             key = str(key_or_payload)
             changed = True
@@ -406,11 +481,21 @@ class RosLink:
                 self._graph.pop(key, None)
                 continue
             try:
-                entity = self._graph[key] = parse_token(key)
+                entity = parse_token(key)
             except ValueError as exc:
                 self.bad_tokens += 1
-                _log.warning("ROS graph: %s", exc)
+                if is_power_of_ten(self.bad_tokens):
+                    _log.warning(
+                        "ROS graph: %d token(s) rmw_zenoh would refuse so far; the latest: %s",
+                        self.bad_tokens,
+                        str(exc)[:300],
+                    )
                 continue
+            full = len(self._graph) >= GRAPH_LIMIT  # ours count too, and always go in
+            if full and key not in self._graph and entity.zid != self._zid:
+                self.graph_overflow += 1
+                continue
+            self._graph[key] = entity
             self._check_types(entity)
         if changed:
             self._wake()
@@ -430,9 +515,17 @@ class RosLink:
                 f"{peer.type_name}/{peer.type_hash}",
                 peer,
             )
-            if mismatch not in self.mismatches:
+            if mismatch in self._mismatched:
+                continue
+            if len(self.mismatches) >= MISMATCH_LIMIT:
+                self.mismatches_dropped += 1
+            else:
                 self.mismatches.append(mismatch)
-                warnings.warn(str(mismatch), RosTypeMismatchWarning, stacklevel=2)
+                self._mismatched.add(mismatch)
+            seen = len(self.mismatches) + self.mismatches_dropped
+            if is_power_of_ten(seen):
+                more = "" if seen == 1 else f" ({seen} mismatched endpoints so far)"
+                warnings.warn(f"{mismatch}{more}", RosTypeMismatchWarning, stacklevel=2)
 
     def __repr__(self) -> str:
         where = f"session {self._zid}" if self._zid else self._state

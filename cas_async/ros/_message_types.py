@@ -69,6 +69,12 @@ _DTYPES: Final = {
     "float64": np.float64,
 }
 _BASE, _NAME, _ARRAY, _SEQUENCE = 1, 2, 3, 4  # rosbags.interfaces.Nodetype
+_SIZES: Final = {
+    "bool": 1, "byte": 1, "char": 1, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2,
+    "int32": 4, "uint32": 4, "int64": 8, "uint64": 8, "float32": 4, "float64": 8,
+}  # fmt: skip
+_ENCAPSULATION: Final = 4
+"""Bytes of CDR's encapsulation header, before the message."""
 
 
 def _store_for(distro: str) -> Any:
@@ -121,6 +127,9 @@ class RosType:
         name: the ROS name, ``geometry_msgs/msg/Twist``.
         dds_name: the name in keys and tokens, ``geometry_msgs::msg::dds_::Twist_``.
         type_hash: the REP-2016 hash, ``RIHS01_...``.
+        max_size: the most bytes a message of the type takes in CDR (with its header
+            and the most alignment padding), or ``None`` when it holds an unbounded
+            string or sequence (``nav_msgs/msg/Odometry``'s frame ids).
     """
 
     def __init__(self, store: Any, name: str) -> None:
@@ -128,6 +137,38 @@ class RosType:
         self.name = name
         self.dds_name = dds_type_name(name)
         self.type_hash: str = store.hash_rihs01(name)
+        body = self._most_bytes(name)
+        self.max_size: int | None = None if body is None else _ENCAPSULATION + body
+
+    def _most_bytes(self, type_name: str) -> int | None:
+        """The most bytes of a message's CDR body, padding included; ``None``: no bound."""
+        total = 0
+        for _, kind in self._store.fielddefs[type_name][1]:
+            size = self._field_bytes(kind)
+            if size is None:
+                return None
+            total += size
+        return total
+
+    def _field_bytes(self, kind: tuple[Any, Any]) -> int | None:
+        node, detail = kind
+        node = int(node)
+        if node == _BASE:
+            primitive, bound = detail
+            if primitive in ("string", "wstring"):  # a length, the characters, a NUL
+                return (
+                    None if not bound else 3 + 4 + bound * (4 if primitive == "wstring" else 1) + 1
+                )
+            size: int = _SIZES[primitive]
+            return size + size - 1  # the value, after at most its alignment's padding
+        if node == _NAME:
+            return self._most_bytes(detail)
+        element, count = detail
+        each = self._field_bytes(element)
+        if each is None or (node == _SEQUENCE and not count):
+            return None
+        total: int = count * each + (3 + 4 if node == _SEQUENCE else 0)
+        return total
 
     def encode(self, value: Mapping[str, Any]) -> bytes:
         """The CDR bytes (little-endian, with the 4-byte encapsulation header) of ``value``.

@@ -40,13 +40,18 @@ _DDS_TYPE: Final = re.compile(r"([A-Za-z][A-Za-z0-9_]*)::msg::dds_::([A-Za-z][A-
 def validate_namespace(namespace: str) -> str:
     """``namespace`` if it is a valid absolute ROS namespace (``/`` or ``/a/b``).
 
+    The empty namespace is the root, ``/``, as rcl (and so rclpy's
+    ``Node(name, namespace="")``) takes it.
+
     Raises:
         ConfigurationError: it is not.
     """
+    if namespace == "":
+        return "/"
     if not _NAMESPACE.fullmatch(namespace):
         raise ConfigurationError(
-            f"ROS namespace must be '/' or '/word/word...' (letters, digits, _; a word does "
-            f"not start with a digit), got {namespace!r}"
+            f"ROS namespace must be '/' (or '', the same) or '/word/word...' (letters, digits, "
+            f"_; a word does not start with a digit), got {namespace!r}"
         )
     return namespace
 

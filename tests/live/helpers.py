@@ -31,12 +31,17 @@ _URL: Final = re.compile(r"(http://[^/\s]+/)")
 
 
 @contextmanager
-def cli(*args: str | os.PathLike[str]) -> Iterator[subprocess.Popen[str]]:
-    """``python -m cas_async *args`` in the repository root; killed on leaving if still running."""
+def cli(
+    *args: str | os.PathLike[str], env: dict[str, str] | None = None
+) -> Iterator[subprocess.Popen[str]]:
+    """``python -m cas_async *args`` in the repository root; killed on leaving if still running.
+
+    ``env`` adds to (or replaces in) this process's environment.
+    """
     process = subprocess.Popen(
         [sys.executable, "-m", "cas_async", *map(str, args)],
         cwd=ROOT,
-        env=_ENV,
+        env={**_ENV, **(env or {})},
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 import cas_async
-from cas_async.live import LiveView
+from cas_async.live import LiveView, ServerLimits
 from cas_async.scenario import RunResult, ScenarioRun, load_scenario
 
 from .helpers import FIRE
@@ -92,7 +92,8 @@ def test_a_viewer_that_never_reads_changes_nothing_the_run_measures() -> None:
     # Small kernel buffers, as on a slow link: on loopback Linux would buffer megabytes.
     listening = socket.create_server(("127.0.0.1", 0))
     listening.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)  # the accepted ones' too
-    view = {"fps": 1e6, "sock": listening}
+    # A viewer silent for the idle time-out is closed: this one must stay for the whole run.
+    view = {"fps": 1e6, "sock": listening, "limits": ServerLimits(idle_timeout=3600.0)}
     watched, stats = _run(scenario, view, _stalled_viewer, often)
     assert watched.status == alone.status == "completed"
     assert _measured(watched) == _measured(alone)

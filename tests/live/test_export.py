@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cas_async.live import export_mcap
+
 from .helpers import cli, finish, read_trace, results_of
 
 pytest.importorskip("mcap_ros2")
@@ -64,3 +66,35 @@ def test_a_directory_that_is_no_run_is_refused_naming_the_file(tmp_path: Path) -
     assert code == 2
     assert f"{tmp_path / 'results.json'}: missing" in stderr
     assert not (tmp_path / "run.mcap").exists()
+
+
+def _schemas(path: Path) -> dict[str, bytes]:
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    return {schema.name: schema.data for schema in summary.schemas.values()}
+
+
+def test_the_schemas_are_named_as_rosbag2_names_them(fire_run: Path, tmp_path: Path) -> None:
+    """``geometry_msgs/msg/PoseArray``, as a bag that rosbag2 (here rosbags' writer) records."""
+    out = tmp_path / "run.mcap"
+    export_mcap(fire_run, out)
+    ours = _schemas(out)
+    assert set(ours) == {
+        "geometry_msgs/msg/PoseArray",
+        "std_msgs/msg/Float64",
+        "visualization_msgs/msg/MarkerArray",
+    }
+    rosbag2 = pytest.importorskip("rosbags.rosbag2")
+    typesys = pytest.importorskip("rosbags.typesys")
+    store = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+    with rosbag2.Writer(
+        tmp_path / "bag", version=9, storage_plugin=rosbag2.StoragePlugin.MCAP
+    ) as writer:
+        for k, name in enumerate(sorted(ours)):
+            writer.add_connection(f"/topic{k}", name, typestore=store)
+    (recorded,) = (tmp_path / "bag").glob("*.mcap")
+    assert set(_schemas(recorded)) == set(ours)
+    for name, definition in ours.items():  # and rosbags reads our definitions by that name
+        types = typesys.get_types_from_msg(definition.decode(), name)
+        assert name in types

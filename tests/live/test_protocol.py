@@ -119,6 +119,28 @@ def test_every_frame_is_the_trace_row_of_its_instant(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
+def test_a_run_on_scaled_time_is_watched_on_uvloop(tmp_path: Path) -> None:
+    """``run --live`` without ``--virtual`` runs on uvloop, whose transports are its own."""
+    pytest.importorskip("uvloop")
+    out = tmp_path / "run"
+    args = ("run", FIRE / "thesis_5_8_2.toml", "--time-factor", "20", "--transport", "memory")
+    with cli(
+        *args, "--no-plots", "--out", out, "--live", "0", "--live-wait",
+        env={"CAS_ASYNC_UVLOOP": "1"},
+    ) as process:  # fmt: skip
+        seen = asyncio.run(watch(url_of(process, "live view:")))
+        code, _, stderr = finish(process)
+    assert code == 0, stderr
+    assert "Traceback" not in stderr
+    assert seen.hello["mode"] == "live"
+    assert seen.frames
+    _check_against_trace(seen, out)
+    end = seen.end
+    assert end is not None
+    assert end["status"] == "completed"
+
+
+@pytest.mark.slow  # a few seconds: the fast suite stays under 2 minutes
 def test_frames_are_capped_per_wall_second(tmp_path: Path) -> None:
     out = tmp_path / "run"
     args = ("run", FIRE / "thesis_5_8_2.toml", "--virtual", "--no-plots", "--out", out)

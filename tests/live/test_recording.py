@@ -68,7 +68,7 @@ def test_without_exchange_snapshots_the_second_count_is_unknown(
     [
         (lambda d: (d / "results.json").unlink(), "results.json: missing"),
         (lambda d: (d / "trace.csv").unlink(), "trace.csv: missing"),
-        (lambda d: (d / "results.json").write_text("{"), "results.json: Expecting"),
+        (lambda d: (d / "results.json").write_text("{"), "results.json: not JSON: Expecting"),
         (lambda d: (d / "trace.csv").write_text("a,b\n"), "trace.csv: line 1: expected the header"),
         (
             lambda d: (d / "scene.json").write_text(json.dumps({"format": "other"})),
@@ -95,7 +95,7 @@ def test_a_run_directory_that_cannot_be_replayed_is_refused_naming_the_file(
         Recording(copy)
 
 
-def test_a_row_of_the_wrong_robot_is_named_when_read(fire_run: Path, tmp_path: Path) -> None:
+def test_a_row_of_the_wrong_robot_is_named_when_opened(fire_run: Path, tmp_path: Path) -> None:
     copy = _copy(fire_run, tmp_path)
     text = (copy / "trace.csv").read_text()
     lines = text.splitlines(keepends=True)
@@ -104,9 +104,10 @@ def test_a_row_of_the_wrong_robot_is_named_when_read(fire_run: Path, tmp_path: P
     fields[1] = "999"
     lines[row] = ",".join(fields)
     (copy / "trace.csv").write_text("".join(lines))
-    recording = Recording(copy)
-    with pytest.raises(RecordingError, match=f"trace.csv: line {row + 1}: expected robot 5's row"):
-        recording.sample(1)
+    with pytest.raises(
+        RecordingError, match=f"trace.csv: line {row + 1}: robot: expected robot 5's row, got 999"
+    ):
+        Recording(copy)
 
 
 def test_view_refuses_a_directory_that_is_no_run(tmp_path: Path) -> None:

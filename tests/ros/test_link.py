@@ -205,6 +205,13 @@ def test_bad_settings_are_refused_naming_them(kwargs: dict[str, Any], message: s
         RosLink(**kwargs)
 
 
+@pytest.mark.parametrize(("given", "namespace"), [("", "/"), ("/", "/"), ("/robot1", "/robot1")])
+def test_the_empty_namespace_is_the_root_as_in_rclpy(given: str, namespace: str) -> None:
+    link = RosLink("probe", namespace=given)
+    assert link.namespace == namespace
+    assert link.resolve("cmd_vel") == f"{namespace.rstrip('/')}/cmd_vel"
+
+
 def test_a_bad_node_name_is_refused() -> None:
     with pytest.raises(ConfigurationError, match="node name"):
         RosLink("my-node")

@@ -7,6 +7,14 @@ through the world's lobby (:mod:`._lobby`) until the world answers with its
 :class:`~._control.Welcome`: the run's scenario and this worker's share of the
 robots (:func:`join`). A worker that cannot run the scenario on its host tells the
 world why (:func:`refuse`), so that the world stops waiting for it.
+
+An answer that does not check against the worker's key is the world's
+:class:`~._control.Refused` (the keys differ) or anyone's garbage: nobody without
+the key can tell them apart. So no such answer decides at once: the worker goes
+on saying hello, a signed answer wins, and only after :data:`REFUSAL_GRACE` with
+nothing but such answers does it conclude that its key is not the world's. The
+world answers in milliseconds, so a stranger answering first cannot stop a worker
+joining, and a worker with the wrong key is told within the grace.
 """
 
 from __future__ import annotations
@@ -23,54 +31,70 @@ from ..._errors import ConfigurationError
 from ..._wire._swarm_key import SwarmKey
 from ...transport.zenoh import import_zenoh, loopback_config
 from ._control import WORLD, Channel, Control, Failed, Full, Hello, Welcome
-from ._lobby import LOBBY
+from ._lobby import LOBBY, lobby_of
 from ._lost import WorkerLost, within
 
-__all__ = ["CONNECT_WAIT", "connected", "join", "refuse"]
+__all__ = ["CONNECT_WAIT", "REFUSAL_GRACE", "connected", "join", "refuse"]
 
 CONNECT_WAIT: Final = 30.0
 """Wall seconds a worker waits, by default, for its world to listen (``worker --wait``)."""
 CONNECT_AGAIN: Final = 0.25
 """Wall seconds between two tries to connect to a world that does not listen yet."""
 _HELLO_EVERY: Final = 0.25
+REFUSAL_GRACE: Final = 2.0
+"""Wall seconds a worker that was answered only with what does not check (a Refused of
+another key, or a stranger's garbage) goes on waiting for a signed answer."""
 _REFUSAL_LIMIT: Final = 5.0
 """Wall seconds a worker that refuses the run waits for the world to hear it."""
 _REFUSAL_FLUSH: Final = 0.2
 """Wall seconds a worker that refuses the run keeps its session open for its word to go."""
 
 
-async def join(connect: str, key: SwarmKey | None, limit: float, wait: float = 0.0) -> Welcome:
+async def join(
+    connect: str,
+    key: SwarmKey | None,
+    limit: float,
+    wait: float = 0.0,
+    *,
+    refusal_grace: float = REFUSAL_GRACE,
+) -> Welcome:
     """Joins the world at ``connect`` through its lobby; returns its :class:`Welcome`.
 
     Raises:
         ConfigurationError: nothing listens at ``connect`` within ``wait`` wall seconds
-            (see :func:`connected`), or the world has its workers.
+            (see :func:`connected`), the world has its workers, or every answer for
+            ``refusal_grace`` wall seconds did not check (the keys differ).
         WorkerLost: no answer within ``limit`` wall seconds (no world there, or a wrong key).
     """
     session = await connected(connect, wait)
     nonce = secrets.token_hex(8)
     answer: asyncio.Future[Control] = asyncio.get_running_loop().create_future()
+    unchecked: list[tuple[float, str]] = []  # when the first answer that did not check came
 
     def handle(suffix: str, sender: int, message: Control) -> None:
         if suffix == f"welcome/{nonce}" and sender == WORLD and not answer.done():
             answer.set_result(message)
 
     def refused(suffix: str, reason: str) -> None:
-        if suffix == f"welcome/{nonce}" and not answer.done():
-            answer.set_exception(
-                ConfigurationError(
-                    f"worker: the world at {connect} signs with another key than this "
-                    f"worker's ({reason} answer): start the worker with the world's key "
-                    f"file (--key-file, or {SwarmKey.ENV_VAR})"
-                )
-            )
+        if suffix == f"welcome/{nonce}" and reason in ("unsigned", "malformed") and not unchecked:
+            unchecked.append((time.monotonic(), reason))
 
-    lobby = Channel(session, LOBBY, int(nonce, 16) & 0x7FFFFFFF, key, handle, refused)
+    routers = [str(zid) for zid in session.info.routers_zid()]
+    prefix = lobby_of(routers[0]) if routers else LOBBY
+    lobby = Channel(session, prefix, int(nonce, 16) & 0x7FFFFFFF, key, handle, refused)
     try:
         lobby.listen(f"welcome/{nonce}")
         deadline = time.monotonic() + limit
         while not answer.done():
-            if time.monotonic() > deadline:
+            now = time.monotonic()
+            if unchecked and now - unchecked[0][0] > refusal_grace:
+                raise ConfigurationError(
+                    f"worker: the world at {connect} signs with another key than this "
+                    f"worker's ({unchecked[0][1]} answers only, for {refusal_grace:g} s): "
+                    f"start the worker with the world's key file (--key-file, or "
+                    f"{SwarmKey.ENV_VAR})"
+                )
+            if now > deadline:
                 raise WorkerLost(f"worker: no answer from a world at {connect} (a wrong key?)")
             if not list(session.info.routers_zid()):  # it was there: zenoh.open connected
                 raise WorkerLost(f"worker: the world at {connect} went away before it answered")

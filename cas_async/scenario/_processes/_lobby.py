@@ -8,10 +8,20 @@ robots) while there are places, :class:`~._control.Full` after. A hello older th
 the world's key gets :class:`~._control.Refused`, which the worker cannot check
 either: it learns that the keys differ, and says so (see :func:`~._joining.join`),
 and the world says once that a worker's hello did not check.
+
+Each world's lobby is its own: its keys are under ``cas_async/lobby/<the world's
+Zenoh id>`` (:func:`lobby_of`), which a worker reads from the router it connected
+to, and a message's tag covers its key. So a hello signed for one world checks in
+no other, even one with the same key: captured in one lobby and put into another,
+it is refused as unsigned. A flood of hellos that do not check costs the world a
+signed :class:`~._control.Refused` for at most :data:`REFUSALS_PER_SECOND` a
+second (a burst of :data:`REFUSAL_BURST`), and one per nonce a second; the others
+are counted (``control.refusal_suppressed``) and not answered.
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -21,12 +31,24 @@ from ..._wire._swarm_key import SwarmKey
 from .._spec._loader import Scenario
 from ._control import WORLD, Channel, Control, Full, Hello, Refused, Welcome
 
-__all__ = ["HELLO_AGE", "LOBBY", "Lobby"]
+__all__ = ["HELLO_AGE", "LOBBY", "REFUSALS_PER_SECOND", "REFUSAL_BURST", "Lobby", "lobby_of"]
 
 LOBBY: Final = "cas_async/lobby"
-"""The lobby's key prefix (the same for every run: a worker knows no run yet)."""
-HELLO_AGE: Final = 30.0
+"""The prefix of every world's lobby (a worker knows no run yet, only its world)."""
+HELLO_AGE: Final = 10.0
 """Wall seconds a worker's hello stays fresh (an older one is a replay)."""
+REFUSALS_PER_SECOND: Final = 10.0
+"""Hellos that do not check answered with a :class:`Refused` a second, at most."""
+REFUSAL_BURST: Final = 20
+"""Of which this many at once."""
+_REFUSAL_PER_NONCE: Final = 1.0
+"""Wall seconds between two refusals of one nonce's hellos (a worker says hello 4 times a s)."""
+
+
+def lobby_of(world: str) -> str:
+    """The key prefix of the lobby of the world whose Zenoh session id is ``world``."""
+    return f"{LOBBY}/{world}"
+
 
 Joined = Callable[[int, int], None]
 """``joined(pid, index)``: the worker process ``pid`` took place ``index``."""
@@ -44,6 +66,7 @@ class Lobby:
         namespace: the run's key prefix, for the welcome.
         shares: every worker's robots, for the welcome (asked at each welcome).
         joined: told when a worker takes a place.
+        clock: the wall clock, in seconds (the refusals' rate).
     """
 
     def __init__(
@@ -55,21 +78,35 @@ class Lobby:
         namespace: str,
         shares: Callable[[], list[list[int]]],
         joined: Joined,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self._scenario = scenario
         self._workers = workers
         self._namespace = namespace
         self._shares = shares
         self._joined = joined
+        self._clock = clock
         self._places: dict[str, int] = {}  # a hello's nonce -> the place it took
         self._said_key = False  # that a hello did not check against the key
-        self._channel = Channel(session, LOBBY, WORLD, key, self._on_hello, self._on_refused)
+        self._tokens = float(REFUSAL_BURST)  # refusals that may go now (a token bucket)
+        self._filled = clock()  # when the bucket was last topped up
+        self._refused_nonces: dict[str, float] = {}  # nonce -> when last refused (recent only)
+        self._suppressed = 0
+        self.prefix = lobby_of(str(session.zid()))
+        """Where this world's lobby is: :func:`lobby_of` the world's session."""
+        self._channel = Channel(session, self.prefix, WORLD, key, self._on_hello, self._on_refused)
         self._channel.listen("hello/*")
 
     @property
     def refused(self) -> dict[str, int]:
-        """Lobby messages refused, by reason (``control.<reason>``)."""
-        return dict(self._channel.refused)
+        """Lobby messages refused, by reason (``control.<reason>``).
+
+        With the refusals not answered (``control.refusal_suppressed``).
+        """
+        refused = dict(self._channel.refused)
+        if self._suppressed:
+            refused["control.refusal_suppressed"] = self._suppressed
+        return refused
 
     def close(self) -> None:
         """Stops answering (idempotent)."""
@@ -101,6 +138,9 @@ class Lobby:
         if suffix == nonce or reason not in ("unsigned", "malformed"):
             return
         if len(nonce) == 16 and all(c in "0123456789abcdef" for c in nonce):
+            if not self._may_refuse(nonce):
+                self._suppressed += 1
+                return
             self._channel.send(
                 f"welcome/{nonce}", Refused("the hello does not check against the key")
             )
@@ -111,3 +151,22 @@ class Lobby:
                     "start every worker with the world's key file",
                     file=sys.stderr,
                 )
+
+    def _may_refuse(self, nonce: str) -> bool:
+        """Whether a refusal may go to ``nonce`` now (see the module docs); takes its token."""
+        now = self._clock()
+        self._tokens = min(
+            float(REFUSAL_BURST), self._tokens + (now - self._filled) * REFUSALS_PER_SECOND
+        )
+        self._filled = now
+        if now - self._refused_nonces.get(nonce, -math.inf) < _REFUSAL_PER_NONCE:
+            return False
+        if self._tokens < 1.0:
+            return False
+        self._tokens -= 1.0
+        if len(self._refused_nonces) >= 4 * REFUSAL_BURST:  # forget the ones refused long ago
+            self._refused_nonces = {
+                n: t for n, t in self._refused_nonces.items() if now - t < _REFUSAL_PER_NONCE
+            }
+        self._refused_nonces[nonce] = now
+        return True

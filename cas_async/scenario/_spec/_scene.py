@@ -203,9 +203,9 @@ class Scene:
                     f"{at}.shape: expected one of {sorted(kinds)}, got {item.get('shape')!r}"
                 )
             values = {key: value for key, value in item.items() if key != "shape"}
-            if kind is Polyline and isinstance(values.get("points"), list):
-                values["points"] = tuple(tuple(point) for point in values["points"])
             try:
+                if kind is Polyline and isinstance(values.get("points"), list):
+                    values["points"] = tuple(_point(point) for point in values["points"])
                 read.append(kind(**values))
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"{at}: {exc}") from None
@@ -216,6 +216,12 @@ class Scene:
             return cls(read, colors)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
+
+
+def _point(point: Any) -> tuple[Any, ...]:
+    if not isinstance(point, list | tuple):
+        raise ValueError(f"Polyline: a point is [x, y], got {point!r:.40}")
+    return tuple(point)
 
 
 def _fields(shape: Shape) -> dict[str, Any]:
