@@ -17,21 +17,25 @@ def window(k: int, busy: float, effects: int = 0) -> Window:
     return Window(k, 0.0, Observation(), remote, Counts(), busy=busy)
 
 
-def test_the_barrier_costs_the_busiest_worker_window_by_window() -> None:
+def test_the_busiest_worker_against_the_average_one_is_the_imbalance() -> None:
     costs = WindowCosts()
-    costs.closed([window(0, 1.0, effects=2), window(0, 3.0)], observing=0.5)
-    costs.closed([window(1, 2.0), window(1, 2.0, effects=1)], observing=0.25)
+    costs.window(0, window(0, 1.0, effects=2))
+    costs.window(1, window(0, 3.0))
+    costs.window(0, window(1, 2.0))
+    costs.window(0, window(2, 2.0, effects=1))
+    costs.observed(0.5)
+    costs.observed(0.25)
     costs.waited(0, 4.0, 1.0)
     costs.waited(1, 6.0, 0.5)
     assert costs.stats(2, virtual=True) == {
         "workers": 2,
-        "windows": 2,
+        "windows": 3,  # the most a worker closed: each runs its own
         "cross_process_effects": 3,
         "worker_waited_s": 6.0,
         "worker_waited_grant_s": 1.0,
         "world_observing_s": 0.75,
-        "window_busy_mean_s": 4.0,  # 2 + 2
-        "window_busy_max_s": 5.0,  # 3 + 2
+        "window_busy_mean_s": 4.0,  # (1 + 2 + 2 + 3) / 2
+        "window_busy_max_s": 5.0,  # worker 0: 1 + 2 + 2
     }
 
 

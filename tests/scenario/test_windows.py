@@ -10,7 +10,7 @@ import pytest
 
 from cas_async import VirtualTimeLoop
 from cas_async._time._deliveries import DATAGRAM, Deliveries
-from cas_async.scenario._processes._windows import Held, Windows
+from cas_async.scenario._processes._windows import Held, Steps, Windows
 
 L = 0.5
 
@@ -249,3 +249,23 @@ async def test_held_windows_never_move_time_and_call_idle_while_waiting() -> Non
     await asyncio.sleep(2.0)
     assert ran == ["timer at 1"]  # freed, time moves on
     assert Held().end == -math.inf
+
+
+def test_steps_count_where_windows_end_and_where_a_decided_run_ends() -> None:
+    steps = Steps(credit=0.1, latency=0.005, max_time=1.0, epoch=3)
+    assert steps.first_end == 0.005
+    assert steps.next_end(0.097) == 0.1  # a window never crosses a step
+    assert not steps.ended(0.05)
+    assert steps.ended(0.1)
+    assert steps.index == 1
+    assert steps.next_epoch(0.1) == pytest.approx(0.3)  # epochs turn every third step
+    for end in (0.2, 0.30000000000000004):  # 3 * 0.1, as the windows count it
+        assert steps.ended(end)
+    assert steps.epoch_starts
+    assert steps.next_epoch(steps.index * steps.credit) == steps.index * steps.credit
+    assert steps.next_epoch(0.31) == pytest.approx(0.6)
+    # Steps start at c * credit, as counted: 3 * 0.1 is in step 3 though 3 * 0.1 / 0.1
+    # rounds below 3, and 0.7 is in step 6, as 7 * 0.1 is a little above 0.7.
+    assert [steps.step_of(t) for t in (0.0, 0.0999, 3 * 0.1, 0.7, 7 * 0.1)] == [0, 0, 3, 6, 7]
+    assert steps.end_of_run(0.25) == pytest.approx(0.4)  # decided in step 2: ends with step 3
+    assert Steps(1.0, 0.1, 10.0).next_epoch(5.0) == math.inf  # no range, no epochs

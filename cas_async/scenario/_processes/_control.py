@@ -26,19 +26,32 @@ The protocol (world ``W``, workers ``0..n-1``):
   does not check gets :class:`Refused`, which the worker cannot check either: the
   keys differ, and it says so at once;
 * ``W`` sends :class:`Go` when every worker is :class:`Ready`;
-* virtual time, window ``k``: each worker runs every event before the window's
-  end, then publishes its :class:`Window` (what its robots did, what they sent to
-  other processes' robots, its next event) to ``W`` and to the other workers.
-  With every window ``k`` in hand, each of them computes where window ``k + 1``
-  ends (:func:`next_instant` plus the latency, or the grant's cap if sooner), the
-  same for all. A worker runs window ``k + 1`` once it has every window ``k`` and
-  ``W``'s :class:`Grant` of ``k + 1``, which ``W`` sends once it has observed
-  window ``k - 1``, capped ``run.credit`` past what it observed: ``W`` is not on
-  the workers' way. Once ``W`` decided the run at ``t`` (its objective met, or
-  every robot stopped) it caps the windows at ``t + run.credit``, the instant
-  the run ends in any number of processes, and says :class:`Stop` once the
-  workers ran every event before it; a worker whose next window would start at or
-  after ``run.max_time`` waits for it;
+* virtual time: each worker runs in windows of its own. When every event of its
+  robots before a window's end has run, it publishes its :class:`Window` (what
+  its robots did, what they sent to other processes' robots, its next event, the
+  window's end ``until``) to ``W`` and to the other workers, with a *promise*:
+  nothing it does from now on reaches another worker before it (the soonest of
+  its next event, of what the workers it depends on promised, of the next epoch's
+  start and of ``run.max_time``, plus the latency). Its next window ends at the
+  least promise of the workers it depends on (every other one without an
+  interaction range; with one, those of its halo, :mod:`._halo`), at the end of
+  the step of ``run.credit`` it is in, or at ``run.max_time``: per-neighbour
+  promises, the null messages of Chandy-Misra-Bryant, so a worker far from the
+  others runs ahead. Where windows end depends only on the run's events and the
+  steps, never on when a message came, so every number of processes gives the
+  same run. A worker runs no step past ``W``'s :class:`Grant`, which ``W`` sends
+  as it observes: two steps past the one it observed, so ``W`` is not on the
+  workers' way. ``W`` observes every record before the least ``until`` of all
+  workers; once it decided the run in step ``c`` (its objective met, or every
+  robot stopped) the run ends at the end of step ``c + 1`` (as in one process),
+  and it says :class:`Stop` once every worker reached that instant. When no
+  worker has an event before ``run.max_time`` and nothing is in flight, the run
+  has timed out at once; a worker whose windows reached ``run.max_time`` waits
+  for the :class:`Stop`;
+* epochs (with an interaction range): windows also end at every epoch's start,
+  where each worker's window carries its robots' ``cells``; from the cells at
+  an epoch's start each worker decides whom it depends on, and whose robots it
+  watches, in the epoch after;
 * scaled time: workers publish :class:`Window` records as they go, unnumbered;
 * a worker that fails says :class:`Failed`; a stopping one says :class:`Bye`
   with its counts.
@@ -50,8 +63,7 @@ import asyncio
 import contextlib
 import hashlib
 import hmac
-import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from typing import Annotated, Any, Final, Union
 
 import msgspec
@@ -82,7 +94,6 @@ __all__ = [
     "Stop",
     "Welcome",
     "Window",
-    "next_instant",
     "token_lives",
 ]
 
@@ -192,6 +203,10 @@ class Window(msgspec.Struct, frozen=True, tag="window"):
     observation: Observation
     remote: list[Remote]
     counts: Counts
+    until: Annotated[float, finite(ge=0)] = 0.0
+    """Virtual time: the window's end. Every event of the worker before it has run."""
+    promise: Annotated[float, finite(ge=0)] = 0.0
+    """Virtual time: nothing the worker does from now on reaches another before it."""
     stopped_at: Annotated[float, finite(ge=0)] | None = None
     busy: Annotated[float, finite(ge=0)] = 0.0
     cells: list[int] = msgspec.field(default_factory=list)
@@ -397,26 +412,6 @@ class Channel:
 def _tag(secret: bytes, key: str, payload: bytes) -> bytes:
     """The signature of ``payload`` published under ``key``."""
     return hmac.new(secret, key.encode() + b"\0" + payload, hashlib.sha256).digest()[:_TAG]
-
-
-def next_instant(windows: Iterable[Window], latency: float) -> float:
-    """The first instant anything happens after these windows (``inf``: nothing ever will).
-
-    A worker's own next event, an effect one sent to another, or a motion of its
-    robots becoming visible to the others. The next window ends ``latency`` later.
-    """
-    return min(
-        (
-            t
-            for window in windows
-            for t in (
-                window.next_event,
-                *(remote.at for remote in window.remote),
-                *(m.t + latency for m in window.observation.motions),
-            )
-        ),
-        default=math.inf,
-    )
 
 
 def token_lives(session: Any, key: str) -> bool:

@@ -144,22 +144,22 @@ class Halo:
             flat += (robot, column, row)
         return flat
 
-    def turn(self, cells: Iterable[Iterable[int]]) -> set[RobotId]:
-        """An epoch starts: every worker's cells at its start in; the robots to watch now.
+    def decide(self, cells: Iterable[Iterable[int]]) -> None:
+        """Every worker's cells at an epoch's start: what to watch in the epoch after it.
 
-        The robots watched during this epoch were decided at the one before; those
-        for the next one are decided from ``cells`` (every worker's, this one's too).
+        Call it once per epoch start, in order, before the next epoch starts.
         """
         known: Cells = {}
         for flat in cells:
             numbers = list(flat)
             for at in range(0, len(numbers), 3):
                 known[numbers[at]] = (numbers[at + 1], numbers[at + 2])
-        self.visible, self._next = self._next, self._sight(known)
-        self.dependencies, self._next_dependencies = (
-            self._next_dependencies,
-            self._dependencies(known),
-        )
+        self._next = self._sight(known)
+        self._next_dependencies = self._dependencies(known)
+
+    def advance(self) -> set[RobotId]:
+        """An epoch starts: the robots to watch in it (decided an epoch ago)."""
+        self.visible, self.dependencies = self._next, self._next_dependencies
         return self.visible
 
     def _sight(self, cells: Cells) -> set[RobotId]:

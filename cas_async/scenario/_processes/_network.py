@@ -19,12 +19,14 @@ the others are kept, not applied, until they come into sight.
 
 from __future__ import annotations
 
+import asyncio
+import math
 from collections.abc import Callable, Iterable, Mapping
 from functools import partial
 from typing import final
 
 from ..._core._transport_contract import DatagramSink, Endpoint, Transport
-from ..._errors import ConfigurationError, RobotStateError, UnknownRobotError
+from ..._errors import ConfigurationError, RobotStateError, SimulationError, UnknownRobotError
 from ..._time._clock import Clock
 from ..._time._deliveries import DATAGRAM, ITEM, MOTION, RECEIPT, Deliveries
 from ..._types import Address, ItemId, RobotId
@@ -113,6 +115,7 @@ class ProcessNetwork(Transport):
         self._clock = clock
         self._environment = environment
         self._flush = flush
+        self._virtual = flush is None  # on virtual time windows carry what goes out
         self._local: dict[RobotId, _Endpoint] = {}
         self._outgoing: list[Remote] = []
         self._hidden: set[RobotId] = set()  # the others' robots out of sight
@@ -201,12 +204,13 @@ class ProcessNetwork(Transport):
         if sender == self._index:
             return
         clock, latency = self._clock, self._latency
+        now = asyncio.get_running_loop().time() if self._virtual else -math.inf
         for record in observation.motions:
-            self._at(
-                clock.loop_time_at(record.t + latency),
-                (MOTION, record.robot, record.n),
-                partial(self._seen, record),
-            )
+            at = clock.loop_time_at(record.t + latency)
+            if at <= now:  # a worker far behind: its robot stayed out of sight meanwhile
+                self._keep_unseen(record)
+                continue
+            self._at(at, (MOTION, record.robot, record.n), partial(self._seen, record))
         for remote in remotes:
             if self.robots.get(remote.receiver) == self._index:
                 self.received += 1
@@ -216,10 +220,27 @@ class ProcessNetwork(Transport):
         """Another process's robot is seen to start a motion: applied, or kept if out of sight."""
         robot = record.robot
         if robot in self._hidden:
-            self._unseen[robot] = record  # in the order they are seen: the latest wins
+            self._keep_unseen(record)
             return
         self.applied += 1
         self._environment.see_motion(robot, Motion.from_numbers(record.numbers), record.t)
+
+    def _keep_unseen(self, record: MotionRecord) -> None:
+        """An out-of-sight robot started a motion: the latest one it started is kept.
+
+        Raises:
+            SimulationError: the robot is in sight: its motion came too late to apply
+                (a worker ran past what it heard; a fault of the protocol, never the app's).
+        """
+        robot = record.robot
+        if robot not in self._hidden:
+            raise SimulationError(
+                f"worker {self._index}: the motion robot {robot} started at {record.t:g} came "
+                "after its instant, with the robot in sight"
+            )
+        kept = self._unseen.get(robot)
+        if kept is None or (kept.t, kept.n) < (record.t, record.n):
+            self._unseen[robot] = record
 
     def watch(self, visible: Iterable[RobotId]) -> None:
         """From now on the others' robots in ``visible`` are in sight, the rest hidden.

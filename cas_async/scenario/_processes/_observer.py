@@ -72,6 +72,19 @@ class Observation(msgspec.Struct, array_like=True):
     def __bool__(self) -> bool:
         return bool(self.motions or self.items)
 
+    def before(self, horizon: float) -> tuple[Observation, Observation]:
+        """The records before ``horizon``, and those at or after it."""
+        return (
+            Observation(
+                [m for m in self.motions if m.t < horizon],
+                [i for i in self.items if i.t < horizon],
+            ),
+            Observation(
+                [m for m in self.motions if m.t >= horizon],
+                [i for i in self.items if i.t >= horizon],
+            ),
+        )
+
     def split(self, horizon: float) -> tuple[Observation, Observation]:
         """The records at or before ``horizon``, and the later ones."""
         return (
@@ -175,6 +188,8 @@ class Observer:
         self._tick = 0  # the next sample is at tick * interval
         self.until = 0.0
         """The instant up to which the mirror is complete: the last window's end."""
+        self.completed_at: float | None = None
+        """The instant of the record whose event completed the mission, once one did."""
 
     @property
     def next_sample(self) -> float:
@@ -189,6 +204,8 @@ class Observer:
                 return
             await self.sample_until(t, inclusive=False)
             self._apply(t, kind, robot, record)
+            if done():
+                self.completed_at = t
         if not done():
             await self.sample_until(end, inclusive=False)
         self.until = end

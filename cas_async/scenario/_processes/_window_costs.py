@@ -3,16 +3,14 @@
 Kept by the world (see :mod:`._world`) from what its workers report: each
 :class:`~._control.Window` (its cross-process effects, and how long the worker
 was busy running it), and each worker's :class:`~._control.Bye` (how long it
-waited). Every window ends for everyone when its slowest worker is done, so the
-sum over windows of the busiest worker's time (``window_busy_max_s``) against
-that of the average worker (``window_busy_mean_s``) is what the shared barrier
-costs: their ratio is the load imbalance, window by window, that more workers do
-not remove.
+waited). Each worker runs its own windows and waits only for the workers it
+depends on; the busiest worker's busy time (``window_busy_max_s``) against the
+average worker's (``window_busy_mean_s``) is the load imbalance: the busiest
+one sets the pace of those that depend on it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection
 from typing import final
 
 from ._control import Window
@@ -25,29 +23,32 @@ class WindowCosts:
     """Window by window, what the workers report (see the module docs)."""
 
     def __init__(self) -> None:
-        self.rounds = 0
-        """Windows closed so far (virtual time)."""
         self.effects = 0
         """Effects (datagrams, hand-over steps) from a worker's robots to another's."""
         self._observing = 0.0  # wall seconds the world spent observing windows
-        self._busy_mean = 0.0  # per window, the workers' mean busy time: summed
-        self._busy_max = 0.0  # per window, the busiest worker's: summed
+        self._windows: dict[int, int] = {}  # a worker -> windows it closed
+        self._busy: dict[int, float] = {}  # a worker -> wall seconds busy in them, summed
         self._waited: dict[int, tuple[float, float]] = {}  # a worker -> its Bye's waits
         self._spread: dict[int, tuple[float, float]] = {}  # a worker -> depended on, watched
+
+    @property
+    def rounds(self) -> int:
+        """The most windows a worker closed so far (virtual time)."""
+        return max(self._windows.values(), default=0)
 
     def flowed(self, window: Window) -> None:
         """Scaled time: a worker's records so far."""
         self.effects += len(window.remote)
 
-    def closed(self, windows: Collection[Window], observing: float) -> None:
-        """Every worker's window of one round, which the world took ``observing`` s to observe."""
-        self.rounds += 1
-        self._observing += observing
-        self.effects += sum(len(window.remote) for window in windows)
-        busy = [window.busy for window in windows]
-        if busy:  # a world has at least one worker
-            self._busy_mean += sum(busy) / len(busy)
-            self._busy_max += max(busy)
+    def window(self, worker: int, window: Window) -> None:
+        """A worker closed a window (virtual time)."""
+        self._windows[worker] = self._windows.get(worker, 0) + 1
+        self._busy[worker] = self._busy.get(worker, 0.0) + window.busy
+        self.effects += len(window.remote)
+
+    def observed(self, seconds: float) -> None:
+        """The world took ``seconds`` (wall) to observe what came in."""
+        self._observing += seconds
 
     def waited(self, worker: int, waited: float, for_grant: float) -> None:
         """A worker's wall seconds waiting, as its :class:`~._control.Bye` says."""
@@ -61,6 +62,7 @@ class WindowCosts:
         """The figures of ``results.json`` (see :meth:`World.stats <._world.World.stats>`)."""
         if not virtual:
             return {"workers": workers, "cross_process_effects": self.effects}
+        busy = list(self._busy.values())
         return {
             "workers": workers,
             "windows": self.rounds,
@@ -68,8 +70,8 @@ class WindowCosts:
             "worker_waited_s": max((w for w, _ in self._waited.values()), default=0.0),
             "worker_waited_grant_s": max((g for _, g in self._waited.values()), default=0.0),
             "world_observing_s": round(self._observing, 3),
-            "window_busy_mean_s": round(self._busy_mean, 3),
-            "window_busy_max_s": round(self._busy_max, 3),
+            "window_busy_mean_s": round(sum(busy) / len(busy), 3) if busy else 0.0,
+            "window_busy_max_s": round(max(busy, default=0.0), 3),
             **self._spreads(),
         }
 

@@ -13,8 +13,12 @@ synchronization per window instead of one per instant.
 
 A window's events all run before it closes, and its end depends only on the
 run's events, which are the same however the robots are spread: a run stops at
-the end of the window in which its mission was complete, in one process as in
-many, and so measures the same.
+the end of the step (:class:`Steps`) after the one in which its mission was
+complete, in one process as in many, and so measures the same.
+
+Across processes each worker's windows are its own: a window ends where the
+workers it depends on promised their next effect (see :mod:`._control`), so a
+worker whose robots are far from the others' runs ahead of them.
 
 :class:`Windows` drives a :class:`~cas_async._time._virtual_loop.VirtualTimeLoop`
 (through :meth:`~cas_async._time._virtual_loop.VirtualTimeLoop.run_windows`): the loop
@@ -189,9 +193,31 @@ class Steps:
         """Whether an epoch starts where the last step ended (see ``_halo``)."""
         return self.epoch > 0 and self.index % self.epoch == 0
 
-    def end_of_run(self) -> float:
-        """Where a run decided in the step under way ends: the end of the step after it."""
-        return (self.index + 2) * self.credit
+    def next_epoch(self, end: float) -> float:
+        """The first epoch start at or after ``end``, a window's end (``inf``: no epochs)."""
+        if self.epoch == 0:
+            return math.inf
+        if self.index > 0 and self.index % self.epoch == 0 and end == self.index * self.credit:
+            return end
+        return (self.index // self.epoch + 1) * self.epoch * self.credit
+
+    def step_of(self, t: float) -> int:
+        """The step instant ``t`` falls in: ``c`` with ``c * credit <= t < (c + 1) * credit``.
+
+        Exact at the steps' own instants (``c * credit``, as windows end there), whatever
+        the rounding of ``t / credit``.
+        """
+        credit = self.credit
+        step = math.floor(t / credit)
+        while (step + 1) * credit <= t:
+            step += 1
+        while step > 0 and step * credit > t:
+            step -= 1
+        return step
+
+    def end_of_run(self, decided_at: float) -> float:
+        """Where a run decided at ``decided_at`` ends: the end of the step after its step."""
+        return (self.step_of(decided_at) + 2) * self.credit
 
 
 class Held:

@@ -6,8 +6,9 @@ robot, with the run's seed: the application draws the same numbers in every
 process) and starts its share. Its robots talk through a
 :class:`~._network.ProcessNetwork`; on virtual time its loop moves in windows
 (:mod:`._windows`): when every event before a window's end has run, the worker
-publishes its :class:`~._control.Window` and waits for the other workers' windows
-and the world's :class:`~._control.Grant` of the next one (see :mod:`._control`). On scaled time it
+publishes its :class:`~._control.Window`, with its promise, and its next window
+ends where the promises of the workers it depends on, its step of ``run.credit``
+and the world's :class:`~._control.Grant` let it (see :mod:`._control`). On scaled time it
 publishes what its robots did as it goes, from simulated time 0 on, which is the
 wall-clock instant the world's :class:`~._control.Go` names.
 
@@ -23,10 +24,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import sys
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -58,7 +60,6 @@ from ._control import (
     Stop,
     Welcome,
     Window,
-    next_instant,
     token_lives,
 )
 from ._halo import Halo
@@ -139,8 +140,13 @@ class _Worker:
         self._key = key
         self._listen = listen
         self._k = 0
-        self._peers: dict[int, dict[int, Window]] = {}  # window -> worker -> its Window
-        self._granted = 0  # the steps the world let run
+        # What the others promised (see _bounds): nothing happens before time 0.
+        latency = scenario.network.latency
+        others = (w for w in range(len(welcome.shares)) if w != welcome.index)
+        self._promised: dict[int, float] = dict.fromkeys(others, latency)
+        self._cells: dict[int, dict[int, list[int]]] = {}  # epoch -> worker -> cells at start
+        # The steps the world let run: no run ends before the end of step 2 (see Steps).
+        self._granted = 2
         self._steps = Steps(1.0, 0.0, 0.0)  # where windows end: set when the run starts
         self._counted = time.monotonic()  # when the counts were last reported (scaled time)
         self._counted_at = time.perf_counter()  # virtual time: when they were last taken
@@ -228,7 +234,7 @@ class _Worker:
             epoch = await within(self._go, scenario.run.window_limit, "the world's go")
             if virtual:
                 assert isinstance(loop, VirtualTimeLoop)
-                first_end = self._steps.first_end
+                first_end = min(self._bounds())
                 loop.run_windows(Windows(loop, first_end, self._close, idle=self._tick))
                 self._resumed = time.perf_counter()
             elif isinstance(clock, ScaledClock):
@@ -306,9 +312,9 @@ class _Worker:
         """Publishes window ``k``; the end of window ``k + 1`` once it may run (see _control)."""
         k = self._k
         recorder, network, channel = self._recorder, self._network, self._channel
-        stop, news = self._stop, self._news
+        stop = self._stop
         assert recorder is not None and network is not None and channel is not None  # noqa: PT018
-        assert stop is not None and news is not None  # noqa: PT018
+        assert stop is not None
         # The counts taken after the window before: counting every robot's counters takes
         # a while (13 ms for 1,250 robots), which is not spent while the others wait.
         counts, self._counts_due = self._counts_due, Counts()
@@ -316,43 +322,98 @@ class _Worker:
         halo, steps = self._halo, self._steps
         boundary = steps.ended(end) and steps.epoch_starts
         cells = halo.own_cells(end) if halo is not None and boundary else []
+        # From now on this worker's events come at its next one, or at what the others
+        # send it (no sooner than they promised), or once an epoch starts (others'
+        # robots may come into range then, not before): its effects a latency later.
+        heard, _ = self._bounds()
+        soonest = min(next_event, heard, steps.next_epoch(end), steps.max_time)
         own = Window(
             k, next_event, recorder.take(), network.take_outgoing(), counts,
-            stopped_at=self._stopped_at, busy=busy, cells=cells,
+            until=end, promise=soonest + steps.latency, stopped_at=self._stopped_at,
+            busy=busy, cells=cells,
         )  # fmt: skip
         channel.send(f"win/{self._index}", own)
+        if boundary:
+            self._cells.setdefault(steps.index // steps.epoch, {})[self._index] = cells
         sent = time.perf_counter()
         if sent - self._counted_at >= COUNTS_EVERY:  # for the next window
             self._counted_at, self._counts_due = sent, self._counts()
-        others = len(self._welcome.shares) - 1
         began = time.perf_counter()
-        await self._until(lambda: len(self._peers.get(k, ())) >= others)
-        peers = self._peers.pop(k, {})
-        latency = self._scenario.network.latency
-        following = next_instant([own, *peers.values()], latency)
-        if following < self._scenario.run.max_time:
-            heard = time.perf_counter()  # the next window runs in step index + 1: granted?
-            await self._until(lambda: self._granted > steps.index)
-            self._waited_grant += time.perf_counter() - heard
-        else:  # the run is over: the world stops it
-            await self._until(lambda: False)
+        if halo is not None and boundary:
+            await self._turn(halo, steps.index // steps.epoch, end)
+        for_grant = await self._until_free(end)
         self._resumed = time.perf_counter()
         self._waited += self._resumed - began
+        self._waited_grant += for_grant
         if stop.is_set():
             self._final = self._counts()  # as the run ended: before the robots stop
             loop = asyncio.get_running_loop()
             if isinstance(loop, VirtualTimeLoop):
                 loop.run_windows(Held())  # the robots stop at the run's last instant
             return None
-        for worker, peer in sorted(peers.items()):
-            network.receive(worker, peer.observation, peer.remote)
         if halo is not None:
-            if boundary:  # an epoch starts: what to watch in it (before any of its events)
-                network.watch(halo.turn([cells, *(peer.cells for peer in peers.values())]))
             self._depended += len(halo.dependencies)
             self._watched += network.watched
         self._k = k + 1
-        return steps.next_end(following)
+        return min(self._bounds())
+
+    def _bounds(self) -> tuple[float, float]:
+        """Where the next window may end: by what it heard and the steps; by the world's grant.
+
+        Its robots' every event before it can run: no effect of another worker's
+        robots reaches them sooner (the promises of the workers it depends on).
+        """
+        steps = self._steps
+        heard = min((self._promised[w] for w in self._depends_on()), default=math.inf)
+        free = min(heard, (steps.index + 1) * steps.credit, steps.max_time)
+        return free, self._granted * steps.credit
+
+    def _depends_on(self) -> Iterable[int]:
+        """The workers whose robots may act on this one's now (every other without a range)."""
+        if self._halo is not None:
+            return self._halo.dependencies
+        return self._promised.keys()
+
+    async def _until_free(self, end: float) -> float:
+        """Waits until a window after ``end`` may run (or the run stops); the wait for grants.
+
+        A worker whose windows reached ``max_time`` waits for the world's :class:`Stop`.
+        """
+        stop, news = self._stop, self._news
+        assert stop is not None and news is not None  # noqa: PT018
+        for_grant, granted_from = 0.0, None
+        while not stop.is_set():
+            free, granted = self._bounds()
+            if end < self._steps.max_time and min(free, granted) > end:
+                break
+            if free > end and granted_from is None and end < self._steps.max_time:
+                granted_from = time.perf_counter()  # heard enough: waits for the world
+            news.clear()
+            await news.wait()
+        if granted_from is not None:
+            for_grant = time.perf_counter() - granted_from
+        return for_grant
+
+    async def _turn(self, halo: Halo, epoch: int, start: float) -> None:
+        """Epoch ``epoch`` starts at ``start``: what this worker watches in it.
+
+        Decided from every worker's cells at the epoch before's start (epoch 1: from
+        where the robots start), it waits for those. The robots coming into sight
+        are placed by the latest motion their workers said they started: it waits
+        until those said everything up to ``start`` (promised no motion before it).
+        """
+        if epoch >= 2:
+            workers = len(self._welcome.shares)
+            await self._until(lambda: len(self._cells.get(epoch - 1, ())) >= workers)
+            cells = self._cells.pop(epoch - 1, {})
+            if len(cells) < workers:  # stopped meanwhile
+                return
+            halo.decide(cells[worker] for worker in sorted(cells))
+        visible = halo.advance()
+        promised = self._promised
+        await self._until(lambda: all(promised[w] >= start for w in halo.dependencies))
+        assert self._network is not None
+        self._network.watch(visible)
 
     def _spread(self) -> tuple[float, float]:
         """The workers it depended on, and the others' robots it watched: means per window."""
@@ -443,16 +504,31 @@ class _Worker:
 
     # -- what comes in -------------------------------------------------------------------
 
+    def _heard(self, sender: int, window: Window) -> None:
+        """Another worker's window: what its robots did and sent to ours, scheduled at once.
+
+        On virtual time, it also promises when its next effect can come (see
+        :meth:`_bounds`), and at an epoch's start says where its robots stand.
+        """
+        network, stop = self._network, self._stop
+        if network is None or (stop is not None and stop.is_set()):
+            return  # not started, or over: the robots here run nothing more
+        network.receive(sender, window.observation, window.remote)
+        if window.k < 0:
+            return
+        self._promised[sender] = max(self._promised.get(sender, 0.0), window.promise)
+        steps = self._steps
+        if steps.epoch:
+            step = steps.step_of(window.until)
+            if step > 0 and step % steps.epoch == 0 and step * steps.credit == window.until:
+                self._cells.setdefault(step // steps.epoch, {})[sender] = window.cells
+
     def _on_message(self, suffix: str, sender: int, message: Control) -> None:
         if sender == WORLD:  # a signed word: it lives
             self._world_word, self._world_suspect = time.monotonic(), False
         match message:
             case Window() if sender != self._index and 0 <= sender < len(self._welcome.shares):
-                if message.k < 0:  # scaled time: at once
-                    if self._network is not None:
-                        self._network.receive(sender, message.observation, message.remote)
-                elif message.k >= self._k:
-                    self._peers.setdefault(message.k, {})[sender] = message
+                self._heard(sender, message)
             case Grant(steps=steps) if sender == WORLD:
                 self._granted = max(self._granted, steps)
             case Go(epoch=epoch) if sender == WORLD:

@@ -4,10 +4,11 @@ The **world** (plugged into :class:`~cas_async.scenario.ScenarioRun`) builds the
 scenario like a run in one process (the mission: its robots, objective and
 groups) but starts no robot. It runs a Zenoh router the workers connect to, deals
 the robots out (:mod:`._partition`), starts the workers (``run --processes``) or
-waits for them (``python -m cas_async world``), and observes: every window, every
-worker's :class:`~._control.Window` goes to the run's
-:class:`~._observer.Observer`, in the one order a run in one process applies them
-too, and the world grants the next window, or stops the run.
+waits for them (``python -m cas_async world``), and observes: the records of every
+worker's :class:`~._control.Window` go to the run's :class:`~._observer.Observer`
+up to the least end any worker reached, in the one order a run in one process
+applies them too, and the world grants the workers steps of ``run.credit``
+ahead of it, or stops the run.
 
 Nothing else goes through the world: robots talk to robots, and hand items over,
 worker to worker. A worker that exits, or goes quiet for ``run.window_limit``
@@ -55,7 +56,6 @@ from ._control import (
     Ready,
     Stop,
     Window,
-    next_instant,
 )
 from ._halo import epoch_steps, top_speed
 from ._liveness import Liveness
@@ -133,7 +133,9 @@ class World:
         self._ready: set[int] = set()
         self._counts: dict[int, Counts] = {}
         self._byes: set[int] = set()
-        self._windows: dict[int, dict[int, Window]] = {}  # k -> worker -> its window
+        self._latest: dict[int, Window] = {}  # a worker -> its latest window (virtual time)
+        self._pending: list[Observation] = []  # records not observed yet (virtual time)
+        self._effects_until = -math.inf  # the latest effect sent before max_time (see _quiet)
         self._flowing: list[Observation] = []  # scaled time: records not applied yet
         self._heard: dict[int, float] = {}  # scaled time: each worker's simulated time heard
         self._stopped_at: dict[int, float] = {}  # scaled time: when each one's robots stopped
@@ -239,70 +241,105 @@ class World:
     async def coordinate(
         self, observer: Observer, done: Callable[[], bool], stop: asyncio.Event
     ) -> tuple[RunStatus, BaseException | None]:
-        """Observes every window and lets the workers run on, until the run ends (virtual time).
+        """Observes the workers' windows and lets them run on, until the run ends (virtual time).
 
-        Windows end a latency after their first event, or at a step (``run.credit``,
-        see :class:`~._windows.Steps`): every process counts the same windows and
-        steps. The world lets the workers run a step past the one it observed last
-        (:class:`~._control.Grant`): it is not on their way. Once a window decides
-        the run in step ``c`` (its mission complete, or every robot stopped before it
-        was; the window in which the last robot stopped is observed up to that
-        instant only), the workers run every event before the end of step ``c + 1``,
-        unobserved, and no later one, as a run in one process does (see
+        Each worker runs its own windows, waiting only for the workers its robots
+        can hear from (see :mod:`._control`); the world observes every record before
+        the earliest window end of all (:attr:`Window.until`), in the one order a run
+        in one process does, and lets the workers run a step past the step of what
+        it observed (:class:`~._control.Grant`, steps of ``run.credit``): it is not
+        on their way. Once a record decides the run at ``t`` (its mission complete,
+        or every robot stopped before it was; records after that instant are not
+        observed), the workers run every event before the end of the step after
+        ``t``'s, unobserved, and no later one, as a run in one process does (see
         :mod:`.._run._windowed`): both measure the same.
         """
-        scenario, channel = self._scenario, self._channel
-        assert channel is not None
-        latency, max_time = scenario.network.latency, scenario.run.max_time
-        steps = Steps(scenario.credit, latency, max_time, self._epoch_steps)
-        granted = 1
-        channel.send("all", Grant(granted))
-        end, k = steps.first_end, 0
+        scenario, channel, news = self._scenario, self._channel, self._news
+        assert channel is not None and news is not None  # noqa: PT018
+        max_time = scenario.run.max_time
+        steps = Steps(scenario.credit, scenario.network.latency, max_time, self._epoch_steps)
+        granted = 2  # what every worker may run from the start (see _worker)
         verdict: RunStatus | None = None
-        ends_at, last_step = math.inf, -1  # once decided: the run ends at the end of last_step
+        ends_at, last_step = math.inf, 0  # once decided: the run ends at the end of last_step
+        observed, since = 0.0, time.monotonic()  # observed up to; since when (for silence)
         while True:
-            try:
-                windows = await self._windows_of(k, stop)
-            except WorkerLost as lost:
-                return RunStatus.FAILED, lost
-            if windows is None:
+            if self._lost is not None:
+                return RunStatus.FAILED, self._lost
+            if stop.is_set():
                 return RunStatus.INTERRUPTED, None
-            began = time.perf_counter()
-            following = next_instant(windows.values(), latency)
-            if verdict is None:
-                verdict = await self._observe(observer, windows, end, done)
-                if verdict is not None:
-                    ends_at, last_step = steps.end_of_run(), steps.index + 2
-                elif following >= max_time:
-                    await observer.sample_until(max_time, inclusive=False)
-                    self._costs.closed(windows.values(), time.perf_counter() - began)
-                    return RunStatus.TIMED_OUT, None
-            self._costs.closed(windows.values(), time.perf_counter() - began)
-            steps.ended(end)
-            if verdict is not None and (end >= ends_at or following >= min(ends_at, max_time)):
-                return verdict, None  # every event before the end ran: none after it
-            # The workers may run into the step after the one observed, never past the end.
-            if steps.index + 1 > granted:
-                granted = steps.index + 1 if verdict is None else min(steps.index + 1, last_step)
-                channel.send("all", Grant(granted))
-            end, k = steps.next_end(following), k + 1
+            latest = self._latest
+            until = min((w.until for w in latest.values()), default=0.0)
+            if len(latest) < self._workers:
+                until = 0.0
+            if until > observed:
+                observed, since = until, time.monotonic()
+                began = time.perf_counter()
+                if verdict is None:
+                    verdict, decided_at = await self._observe(observer, until, done)
+                    if verdict is not None:
+                        ends_at = steps.end_of_run(decided_at)
+                        last_step = steps.step_of(decided_at) + 2
+                    elif until >= max_time or self._quiet(until, max_time):
+                        await observer.sample_until(max_time, inclusive=False)
+                        self._costs.observed(time.perf_counter() - began)
+                        return RunStatus.TIMED_OUT, None
+                self._costs.observed(time.perf_counter() - began)
+                if verdict is not None and until >= ends_at:
+                    return verdict, None  # every event before the end ran: none after it
+                # The workers may run into the step after the one observed, never past the end.
+                cap = steps.step_of(until) + 2 if verdict is None else last_step
+                if cap > granted:
+                    granted = cap
+                    channel.send("all", Grant(granted))
+            behind = [
+                w for w in range(self._workers) if w not in latest or latest[w].until <= until
+            ]
+            silent = self._liveness.silent(behind, since)  # the others wait for those
+            if silent:
+                where = f" at simulated time {until:g}"
+                return RunStatus.FAILED, self._liveness.lost(silent, where)
+            news.clear()
+            await news.wait()  # news, or a tick (see tick): the wall clock is looked at again
 
     async def _observe(
-        self,
-        observer: Observer,
-        windows: dict[int, Window],
-        end: float,
-        done: Callable[[], bool],
-    ) -> RunStatus | None:
-        """Observes the window ending at ``end``: whether it decided the run (see coordinate)."""
-        observations = [windows[w].observation for w in sorted(windows)]
-        stopped_at = _all_stopped(windows.values())
-        if stopped_at is not None:  # the last robot stopped: observed up to that instant
-            await observer.window(stopped_at, [o.split(stopped_at)[0] for o in observations])
-            # Met by then: a tie goes to the objective.
-            return RunStatus.COMPLETED if done() else RunStatus.STOPPED
-        await observer.window(end, observations)
-        return RunStatus.COMPLETED if done() else None
+        self, observer: Observer, until: float, done: Callable[[], bool]
+    ) -> tuple[RunStatus | None, float]:
+        """Observes every record before ``until``: whether that decided the run, and when.
+
+        Once every worker's robots have stopped, and every record up to the instant the
+        last one did is in, the records are observed up to that instant and the run is
+        decided there: completed if its objective was met by then (a tie goes to the
+        objective), else stopped.
+        """
+        pending = self._pending
+        stopped_at = _all_stopped(self._latest.values())
+        if stopped_at is not None and until > stopped_at:
+            self._pending = []
+            await observer.window(stopped_at, [o.split(stopped_at)[0] for o in pending])
+            if done():
+                return RunStatus.COMPLETED, _completed_at(observer)
+            return RunStatus.STOPPED, stopped_at
+        ready: list[Observation] = []
+        self._pending = []
+        for observation in pending:
+            now, later = observation.before(until)
+            ready.append(now)
+            if later:
+                self._pending.append(later)
+        await observer.window(until, ready)
+        if done():
+            return RunStatus.COMPLETED, _completed_at(observer)
+        return None, until
+
+    def _quiet(self, until: float, max_time: float) -> bool:
+        """Whether nothing happens before ``max_time`` any more (all observed up to ``until``).
+
+        Every worker's next event is at ``max_time`` or later, and every effect they
+        sent each other (datagrams, hand-overs, motions seen) came before ``until``,
+        so that it ran: nothing can start anything again.
+        """
+        soonest = min(window.next_event for window in self._latest.values())
+        return soonest >= max_time and self._effects_until < until
 
     async def follow(self, observer: Observer) -> None:
         """Applies what the workers report as it comes (scaled time); raises when one is lost.
@@ -343,26 +380,6 @@ class World:
                     return
             news.clear()
             await news.wait()
-
-    async def _windows_of(self, k: int, stop: asyncio.Event) -> dict[int, Window] | None:
-        """Every worker's window ``k`` (``None``: ``stop`` was set meanwhile)."""
-        news = self._news
-        assert news is not None
-        started = time.monotonic()
-        while True:
-            if self._lost is not None:
-                raise self._lost
-            got = self._windows.get(k, {})
-            if len(got) >= self._workers:
-                return self._windows.pop(k)
-            if stop.is_set():
-                return None
-            missing = [w for w in range(self._workers) if w not in got]
-            silent = self._liveness.silent(missing, started)
-            if silent:
-                raise self._liveness.lost(silent, f" for window {k}")
-            news.clear()
-            await news.wait()  # news, or a tick (see tick): the wall clock is looked at again
 
     def tick(self) -> None:
         """Look at the wall clock again: called every ~50 ms while the world waits.
@@ -505,6 +522,20 @@ class World:
 
     # -- what comes in -----------------------------------------------------------------
 
+    def _window(self, sender: int, window: Window) -> None:
+        """A worker's window (virtual time): kept to observe, its costs counted."""
+        self._latest[sender] = window
+        if window.observation:
+            self._pending.append(window.observation)
+        self._costs.window(sender, window)
+        latency, max_time = self._scenario.network.latency, self._scenario.run.max_time
+        effects = (
+            *(remote.at for remote in window.remote),
+            *(motion.t + latency for motion in window.observation.motions),
+        )
+        soonest = max((at for at in effects if at < max_time), default=-math.inf)
+        self._effects_until = max(self._effects_until, soonest)
+
     def _on_message(self, suffix: str, sender: int, message: Control) -> None:
         if not 0 <= sender < self._workers:
             raise ValueError(f"a message from no worker ({sender})")
@@ -514,7 +545,7 @@ class World:
                 if message.counts.internal or message.counts.external or message.counts.dropped:
                     self._counts[sender] = message.counts
                 if k >= 0:
-                    self._windows.setdefault(k, {})[sender] = message
+                    self._window(sender, message)
                 else:  # scaled time: its robots' records so far, and where its time is
                     self._costs.flowed(message)
                     self._flowing.append(message.observation)
@@ -543,3 +574,8 @@ def _all_stopped(windows: Iterable[Window]) -> float | None:
     if any(at is None for at in instants):
         return None
     return max(at for at in instants if at is not None)
+
+
+def _completed_at(observer: Observer) -> float:
+    """The instant the observed records met the objective (met before any came: where it was)."""
+    return observer.completed_at if observer.completed_at is not None else observer.until

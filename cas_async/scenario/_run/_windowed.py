@@ -214,7 +214,8 @@ class WindowedRun:
     def _decide(self, verdict: RunStatus) -> None:
         """The run is decided in the step under way: it ends at the next one's end."""
         self.verdict = verdict
-        self._ends_at = self._steps.end_of_run()
+        steps = self._steps
+        self._ends_at = steps.end_of_run(steps.index * steps.credit)
 
     def _next_end(self, following: float) -> float:
         """The next window's end (loop time), its first event at ``following`` (simulated)."""

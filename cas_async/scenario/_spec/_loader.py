@@ -108,11 +108,12 @@ class RunConfig:
             :mod:`cas_async.scenario._processes._partition`). Results do not depend on it.
         window_limit: across processes, wall seconds the world waits for a window
             (or a worker's start) before it fails the run, naming who it waited for.
-        credit: on virtual time with a latency, simulated seconds the robots run
-            past the instant the run is decided (completed, or every robot
-            stopped), unobserved, before they stop, in one process as in many; and
-            across processes, how far the workers may run ahead of what the world
-            has observed. ``None``: ten latencies (see :attr:`Scenario.credit`).
+        credit: on virtual time with a latency, the length of a *step*, simulated
+            seconds: windows end at every step; a run decided (completed, or every
+            robot stopped) in one step runs on, unobserved, to the end of the next,
+            in one process as in many; and across processes, the workers run at
+            most two steps ahead of what the world has observed. ``None``: ten
+            latencies (see :attr:`Scenario.credit`).
     """
 
     seed: int = setting(0, ge=0, doc="seed of the run's random generator")
@@ -146,7 +147,8 @@ class RunConfig:
         None,
         gt=0,
         le=3600,
-        doc="simulated seconds robots run past the run's end, and ahead of its observation "
+        doc="simulated seconds a step lasts: a run ends at the end of the step after the one "
+        "it was decided in, and workers run two steps ahead of its observation at most "
         "(default: 10 latencies)",
     )
 
