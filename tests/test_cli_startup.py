@@ -20,6 +20,7 @@ import pytest
 from tests.test_cli import ROOT, RUN_LIMIT, Finished, run_cli
 
 GATHERING: Final = ROOT / "examples" / "gathering" / "gathering.toml"
+BOX_MOVING: Final = ROOT / "apps" / "box_moving" / "scenarios" / "thesis_4_4.toml"
 EXIT_USAGE: Final = 2
 
 
@@ -52,11 +53,12 @@ def test_an_objective_that_cannot_run_across_processes_says_what_distributable_m
 ) -> None:
     pytest.importorskip("zenoh", reason="--processes needs the zenoh extra: it says so first")
     line = refused_in_one_line(
-        run_cli("run", GATHERING, "--processes", "2", "--out", tmp_path / "out")
+        run_cli("run", BOX_MOVING, "--processes", "2", "--out", tmp_path / "out")
     )
-    assert "--processes: Gathering's objective Gathered is not distributable" in line
+    # Box Moving's objective reads the robots' layers (the tutorial's Gathered no longer does).
+    assert "--processes: Box Moving's objective MoveObjects is not distributable" in line
     assert "the world process observes a mirror of their Environment" in line
-    assert "set distributable = True on Gathered" in line
+    assert "set distributable = True on MoveObjects" in line
     assert "Otherwise run without --processes" in line
     assert_failed_with(tmp_path / "out", line)
 

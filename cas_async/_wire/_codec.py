@@ -227,7 +227,7 @@ class Codec:
             raise self._invalid(str(exc), data) from None
         except msgspec.DecodeError as exc:
             raise DecodeError(f"malformed: {exc}", "malformed") from None
-        except UnicodeDecodeError as exc:  # msgspec raises it as it is for a str of bad UTF-8
+        except UnicodeDecodeError as exc:  # msgspec before 0.23 raised it for a str of bad UTF-8
             raise DecodeError(f"malformed: a str is not UTF-8: {exc.reason}", "malformed") from None
         except RecursionError:  # bare list/dict fields or recursive messages, nested deeply
             raise DecodeError("values nest too deeply", "wrong_type") from None
