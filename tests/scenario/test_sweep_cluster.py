@@ -283,7 +283,6 @@ def test_on_the_documented_commands_a_lost_scheduler_ends_the_sweep_keeping_its_
     assert process.returncode == 1, first + stderr
     done = len(read_csv(out))
     assert 1 <= done < 20
-    assert (
-        f"error: lost the connection to the Dask scheduler at {address}: {done} of 20 runs done"
-    ) in stderr
+    lost = f"error: lost the connection to the Dask scheduler at {address}: {done} of 20 runs done"
+    assert lost in stderr, stderr
     assert "Traceback" not in stderr

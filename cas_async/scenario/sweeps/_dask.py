@@ -116,7 +116,7 @@ class DaskBackend:
             error = future.exception()
             run: SweepRun | None = future.result() if error is None else None
         except Exception as lost:  # a cancellation, or the connection closed
-            if not self._connected():
+            if not self._connected() or _connection_lost(lost):
                 return Settled(stop=self._lost())
             if isinstance(lost, CancelledError):
                 return Settled(stop="the Dask cluster cancelled a run that the sweep had not")
@@ -182,3 +182,15 @@ class DaskBackend:
                 self._threads = sum(threads.values())
                 self._workers = len(threads)
                 self.most_workers = max(self.most_workers, self._workers)
+
+
+def _connection_lost(error: BaseException) -> bool:
+    """Whether fetching a run failed because the scheduler went.
+
+    The client's status says so only once its own stream to the scheduler noticed,
+    which on a loaded machine may come after a fetch of a result failed (a closed
+    comm is an ``OSError``) or the client cancelled its futures for that reason.
+    """
+    return isinstance(error, OSError) or getattr(error, "reason", None) == (
+        "scheduler-connection-lost"
+    )
