@@ -8,6 +8,7 @@ every message raises, so a row at all means every message arrived.
 from __future__ import annotations
 
 import dataclasses
+import json
 import sys
 from pathlib import Path
 
@@ -170,3 +171,27 @@ def test_the_sweep_benchmark_runs_both_ways_and_compares(
     assert "median wall: local " in printed
     assert '"identical": false' not in printed
     assert '"completed": false' not in printed
+
+
+@pytest.mark.slow
+def test_the_parallel_benchmark_reports_efficiency_waiting_and_dependencies(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    pytest.importorskip("zenoh", reason="runs across processes need the zenoh extra")
+    from benchmarks import parallel
+
+    before = children()
+    code = parallel.main(["--scenarios", "scale_250", "--processes", "2"])
+    assert children() <= before, "the benchmark left a child process behind"
+    printed = capsys.readouterr().out
+    assert code == 0, printed  # no target for scale_250: 0 means completed and identical
+    rows = [json.loads(line) for line in printed.splitlines() if line.startswith("{")]
+    alone, split = rows
+    assert (alone["processes"], split["processes"]) == (1, 2)
+    assert alone["cpu_efficiency"] == 1.0
+    assert split["cpu_efficiency"] == round(alone["cpu_s"] / split["cpu_s"], 2)
+    assert 0 <= split["waited_share"] <= 1
+    assert 0 < split["dependency_set_mean"] <= 1  # one other worker, with a range
+    assert split["identical"] is True
+    assert "cpu eff" in printed
+    assert "deps" in printed
