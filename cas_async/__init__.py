@@ -161,7 +161,7 @@ if _typing.TYPE_CHECKING:
         ZenohTransport as ZenohTransport,
     )
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
     "Address",

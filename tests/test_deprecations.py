@@ -121,3 +121,19 @@ def test_the_root_face_loads_each_name_from_where_type_checkers_see_it() -> None
     homes = vars(cas_async)["_HOMES"]
     assert _type_checking_imports() == homes
     assert sorted(homes) == cas_async.__all__
+
+
+def test_the_version_is_the_changelogs_newest_release() -> None:
+    import tomllib
+
+    import cas_async
+
+    root = Path(__file__).resolve().parent.parent
+    project = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))
+    newest = next(
+        line
+        for line in (root / "CHANGELOG.md").read_text(encoding="utf-8").splitlines()
+        if line.startswith("## [")
+    )
+    assert project["project"]["version"] == cas_async.__version__
+    assert newest.startswith(f"## [{cas_async.__version__}] - ")
