@@ -68,6 +68,10 @@ _START_TOLERANCE: Final = 1e-9
 # How much faster than its top speed a motion may seem: rounding, not speeding.
 _SPEED_TOLERANCE: Final = 1 + 1e-9
 
+# How near the range's square a distance's square may be for in_range to redo it
+# with within's own arithmetic (numpy may fuse its multiply and add: an ulp apart).
+_CLOSE_CALL: Final = 1e-9
+
 # Below this many robots a range query evaluates everyone: numpy over a few dozen
 # rows costs less than collecting them from the grid's cells.
 _GRID_FROM: Final = 64
@@ -541,10 +545,18 @@ class Environment(Handovers):
         if limit is None:
             return True
         check_instant(t)
-        rows = np.array((index, there), dtype=np.intp)
         seen = self._seen
-        xy = (self._table if seen is None else seen).positions_of(t, rows)
-        xy[0] = self._table.position(index, t)  # the asker where it is
+        table = self._table if seen is None else seen
+        x, y = self._table.position(index, t)  # the asker where it is
+        other_x, other_y = table.position(there, t)
+        dx, dy = other_x - x, other_y - y
+        squared, bound = dx * dx + dy * dy, limit * limit
+        if abs(squared - bound) > _CLOSE_CALL * bound:  # clear either way (NaN: not clear)
+            return squared <= bound
+        # At the edge: within's own arithmetic, which may round its sum otherwise.
+        rows = np.array((index, there), dtype=np.intp)
+        xy = table.positions_of(t, rows)
+        xy[0] = (x, y)
         return bool(nearest_first(self._row_ids()[rows], xy, xy[0], limit, 0).ids.size)
 
     def _near(self, index: int, here: tuple[float, float], radius: float) -> set[int] | None:
