@@ -118,6 +118,7 @@ class ProcessNetwork(Transport):
         self._virtual = flush is None  # on virtual time windows carry what goes out
         self._local: dict[RobotId, _Endpoint] = {}
         self._outgoing: list[Remote] = []
+        self._others = sum(1 for owner in self.robots.values() if owner != index)
         self._hidden: set[RobotId] = set()  # the others' robots out of sight
         self._unseen: dict[RobotId, MotionRecord] = {}  # the latest motion of each, unapplied
         self.applied = 0
@@ -265,7 +266,7 @@ class ProcessNetwork(Transport):
     @property
     def watched(self) -> int:
         """How many of the others' robots are in sight now."""
-        return sum(1 for owner in self.robots.values() if owner != self._index) - len(self._hidden)
+        return self._others - len(self._hidden)
 
     def _effect(self, remote: Remote) -> Callable[[], None]:
         environment = self._environment
