@@ -9,7 +9,6 @@ from __future__ import annotations
 import asyncio
 import hashlib
 import hmac
-import math
 from collections.abc import AsyncIterator, Callable, Iterator
 from typing import Any
 
@@ -17,7 +16,7 @@ import msgspec
 import pytest
 
 from cas_async import SwarmKey
-from cas_async._time._deliveries import DATAGRAM, ITEM
+from cas_async._time._deliveries import ITEM
 from cas_async.scenario._processes._control import (
     WORLD,
     Beat,
@@ -35,7 +34,6 @@ from cas_async.scenario._processes._control import (
     Stop,
     Welcome,
     Window,
-    next_instant,
 )
 from cas_async.scenario._processes._observer import MotionRecord, Observation
 
@@ -45,39 +43,6 @@ from tests.zenoh_support import namespace, until  # noqa: E402
 
 KEY = SwarmKey(bytes(range(32)))
 Heard = list[tuple[str, int, Control]]
-
-
-# -- next_instant ---------------------------------------------------------------------------
-
-
-def window(
-    next_event: float, remote_at: tuple[float, ...] = (), motions_at: tuple[float, ...] = ()
-) -> Window:
-    return Window(
-        k=0,
-        next_event=next_event,
-        observation=Observation([MotionRecord(t, 1, n, []) for n, t in enumerate(motions_at)]),
-        remote=[Remote(at, DATAGRAM, 1, n, 2) for n, at in enumerate(remote_at)],
-        counts=Counts(),
-    )
-
-
-@pytest.mark.parametrize(
-    ("windows", "expected"),
-    [
-        ([], math.inf),
-        ([window(math.inf)], math.inf),
-        ([window(3.0), window(2.5)], 2.5),
-        ([window(3.0, remote_at=(2.2, 2.9))], 2.2),  # an effect due at another process
-        ([window(3.0, motions_at=(1.0,))], 1.5),  # a motion seen L after it started
-        ([window(math.inf, motions_at=(4.0, 2.8)), window(3.5, remote_at=(3.4,))], 3.3),
-    ],
-    ids=["none", "nothing-ever", "next-events", "remote", "motion-seen", "all"],
-)
-def test_next_instant_is_the_first_thing_to_happen_anywhere(
-    windows: list[Window], expected: float
-) -> None:
-    assert next_instant(windows, 0.5) == expected
 
 
 # -- channels -------------------------------------------------------------------------------

@@ -533,8 +533,8 @@ class World:
             *(remote.at for remote in window.remote),
             *(motion.t + latency for motion in window.observation.motions),
         )
-        soonest = max((at for at in effects if at < max_time), default=-math.inf)
-        self._effects_until = max(self._effects_until, soonest)
+        latest = max((at for at in effects if at < max_time), default=-math.inf)
+        self._effects_until = max(self._effects_until, latest)
 
     def _on_message(self, suffix: str, sender: int, message: Control) -> None:
         if not 0 <= sender < self._workers:
