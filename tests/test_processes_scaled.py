@@ -113,7 +113,9 @@ def test_no_figure_of_the_results_is_before_time_zero(at_ten: Scaled) -> None:
 def test_progress_starts_at_zero_and_never_shows_a_negative_time(at_ten: Scaled) -> None:
     shown = progress_times(at_ten.stderr)
     assert shown, at_ten.stderr
-    assert shown[0] == 0.0
+    # The first line comes with the first sample: at 0.0, or a hair later on a loaded
+    # machine (as the trace's first sample), shown to a tenth of a second.
+    assert 0.0 <= shown[0] <= 0.1, at_ten.stderr
     assert min(shown) >= 0.0
     assert "t=-" not in at_ten.stderr
 
