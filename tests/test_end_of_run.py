@@ -211,7 +211,7 @@ def _episode(layer: str, *overrides: str) -> tuple[int, dict[str, bool], dict[st
                      "terminated", id="completes-and-keeps-going"),
         pytest.param("contract_net.learned:LearnedContract", True, RunStatus.COMPLETED,
                      "terminated", id="completes-and-stops"),
-        pytest.param("contract_net.probes:LazyLearned", False, RunStatus.TIMED_OUT,
+        pytest.param("contract_net.learned:LazyLearned", False, RunStatus.TIMED_OUT,
                      "truncated", id="never-completes"),
     ],
 )  # fmt: skip

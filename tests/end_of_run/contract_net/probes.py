@@ -1,6 +1,5 @@
 """Contracts that end a run early: every robot stops at once, or nothing ever happens."""
 
-from cas_async.rl import PolicyLayer
 from contract_net.app import Contract
 
 
@@ -16,7 +15,3 @@ class LazyContract(Contract):
 
     async def inner_process(self) -> None:
         pass
-
-
-class LazyLearned(PolicyLayer, LazyContract):
-    """The lazy contract as a policy layer (it never decides)."""
