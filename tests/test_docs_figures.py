@@ -44,6 +44,8 @@ def test_the_testing_page_counts_the_suite_within_a_tenth() -> None:
         cwd=ROOT, capture_output=True, text=True, timeout=240, check=False,
     )  # fmt: skip
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    if "SKIPPED [" in done.stdout:  # modules of an extra not installed here are not counted
+        pytest.skip("the page counts the suite with every extra installed (the dev extra)")
     collected = COLLECTED.search(done.stdout)
     assert collected, done.stdout[-2000:]
     slow, whole = (int(n) for n in collected.groups())
