@@ -261,7 +261,8 @@ def test_steps_count_where_windows_end_and_where_a_decided_run_ends() -> None:
     assert steps.next_epoch(0.1) == pytest.approx(0.3)  # epochs turn every third step
     for end in (0.2, 0.30000000000000004):  # 3 * 0.1, as the windows count it
         assert steps.ended(end)
-    assert steps.epoch_starts
+    assert steps.epoch_at(steps.index * steps.credit) == 1  # epoch 1 starts at step 3
+    assert steps.epoch_at(0.2) is None
     assert steps.next_epoch(steps.index * steps.credit) == steps.index * steps.credit
     assert steps.next_epoch(0.31) == pytest.approx(0.6)
     # Steps start at c * credit, as counted: 3 * 0.1 is in step 3 though 3 * 0.1 / 0.1

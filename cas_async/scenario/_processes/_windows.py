@@ -188,16 +188,23 @@ class Steps:
             return True
         return False
 
-    @property
-    def epoch_starts(self) -> bool:
-        """Whether an epoch starts where the last step ended (see ``_halo``)."""
-        return self.epoch > 0 and self.index % self.epoch == 0
+    def epoch_at(self, t: float) -> int | None:
+        """The epoch that starts at instant ``t`` (a window's end), or ``None`` (see ``_halo``).
+
+        Epoch ``e`` starts at the end of step ``e * epoch``; epoch 0 at the start.
+        """
+        if self.epoch == 0:
+            return None
+        step = self.step_of(t)
+        if step > 0 and step % self.epoch == 0 and step * self.credit == t:
+            return step // self.epoch
+        return None
 
     def next_epoch(self, end: float) -> float:
         """The first epoch start at or after ``end``, a window's end (``inf``: no epochs)."""
         if self.epoch == 0:
             return math.inf
-        if self.index > 0 and self.index % self.epoch == 0 and end == self.index * self.credit:
+        if self.epoch_at(end) is not None:
             return end
         return (self.index // self.epoch + 1) * self.epoch * self.credit
 

@@ -320,8 +320,9 @@ class _Worker:
         counts, self._counts_due = self._counts_due, Counts()
         busy = time.perf_counter() - self._resumed
         halo, steps = self._halo, self._steps
-        boundary = steps.ended(end) and steps.epoch_starts
-        cells = halo.own_cells(end) if halo is not None and boundary else []
+        steps.ended(end)
+        epoch = steps.epoch_at(end)
+        cells = halo.own_cells(end) if halo is not None and epoch is not None else []
         # From now on this worker's events come at its next one, or at what the others
         # send it (no sooner than they promised), or once an epoch starts (others'
         # robots may come into range then, not before): its effects a latency later.
@@ -333,14 +334,14 @@ class _Worker:
             busy=busy, cells=cells,
         )  # fmt: skip
         channel.send(f"win/{self._index}", own)
-        if boundary:
-            self._cells.setdefault(steps.index // steps.epoch, {})[self._index] = cells
+        if epoch is not None:
+            self._cells.setdefault(epoch, {})[self._index] = cells
         sent = time.perf_counter()
         if sent - self._counted_at >= COUNTS_EVERY:  # for the next window
             self._counted_at, self._counts_due = sent, self._counts()
         began = time.perf_counter()
-        if halo is not None and boundary:
-            await self._turn(halo, steps.index // steps.epoch, end)
+        if halo is not None and epoch is not None:
+            await self._turn(halo, epoch, end)
         for_grant = await self._until_free(end)
         self._resumed = time.perf_counter()
         self._waited += self._resumed - began
@@ -517,11 +518,9 @@ class _Worker:
         if window.k < 0:
             return
         self._promised[sender] = max(self._promised.get(sender, 0.0), window.promise)
-        steps = self._steps
-        if steps.epoch:
-            step = steps.step_of(window.until)
-            if step > 0 and step % steps.epoch == 0 and step * steps.credit == window.until:
-                self._cells.setdefault(step // steps.epoch, {})[sender] = window.cells
+        epoch = self._steps.epoch_at(window.until)
+        if epoch is not None:
+            self._cells.setdefault(epoch, {})[sender] = window.cells
 
     def _on_message(self, suffix: str, sender: int, message: Control) -> None:
         if sender == WORLD:  # a signed word: it lives
